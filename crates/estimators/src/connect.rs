@@ -1,0 +1,115 @@
+//! Next-event connections of path vertices to all sources and sensors (Eqs. 31, 38).
+//!
+//! Per path, the legs from the sources and to the sensors at `x1` are computed once; per vertex
+//! `x_b`, once per source and once per sensor. The `J` pair values are then products of these
+//! per-endpoint terms, so the cost per vertex is `O(S + V)` exponentials and `O(J)` complex
+//! multiplies.
+
+use crate::{Coherence, Leg, Scene};
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_medium::Medium;
+use speckle_phase::PhaseFunction;
+
+/// Scratch space for the connections of one path at a time; allocated once per batch.
+pub(crate) struct Connector<'s, M, P> {
+    scene: &'s Scene<M, P>,
+    k: f64,
+    in1: Vec<Leg>,
+    out1: Vec<Leg>,
+    /// `upsilon(i -> x1) s(i . w12)` per source.
+    fwd_src: Vec<Complex64>,
+    /// `upsilon(x1 -> v) s(-w12 . v)` per sensor.
+    rev_sens: Vec<Complex64>,
+    /// `upsilon(x_b -> v) s(w_in . v)` per sensor.
+    fwd_sens: Vec<Complex64>,
+    /// `upsilon(i -> x_b) s(-i . w_in)` per source.
+    rev_src: Vec<Complex64>,
+    /// The `J` pair values of the current vertex.
+    pub(crate) a: Vec<Complex64>,
+}
+
+impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
+    pub(crate) fn new(scene: &'s Scene<M, P>) -> Self {
+        let (ns, nv) = (scene.sources().len(), scene.sensors().len());
+        let zero = Complex64::new(0.0, 0.0);
+        let leg = Leg {
+            amp: zero,
+            dir: DVec3::Z,
+        };
+        Self {
+            scene,
+            k: scene.wavenumber(),
+            in1: vec![leg; ns],
+            out1: vec![leg; nv],
+            fwd_src: vec![zero; ns],
+            rev_sens: vec![zero; nv],
+            fwd_sens: vec![zero; nv],
+            rev_src: vec![zero; ns],
+            a: vec![zero; scene.len()],
+        }
+    }
+
+    /// Starts a path at `x1` and fills `a` with the single-scattering values
+    /// `F_j = upsilon(i_j -> x1) s(i_j . v_j) upsilon(x1 -> v_j)` (Eq. 41's integrand).
+    pub(crate) fn first(&mut self, x1: DVec3) {
+        let (m, k) = (self.scene.medium(), self.k);
+        for (leg, s) in self.in1.iter_mut().zip(self.scene.sources()) {
+            *leg = s.leg(m, k, x1);
+        }
+        for (leg, v) in self.out1.iter_mut().zip(self.scene.sensors()) {
+            *leg = v.leg(m, k, x1);
+        }
+        let phase = self.scene.phase();
+        for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
+            let (i, o) = (&self.in1[p.source], &self.out1[p.sensor]);
+            *a = i.amp * o.amp * phase.amplitude(i.dir.dot(o.dir));
+        }
+    }
+
+    /// Fixes the first direction `w12` of the current path (call once, at its second vertex).
+    pub(crate) fn second(&mut self, w12: DVec3) {
+        let phase = self.scene.phase();
+        for (f, leg) in self.fwd_src.iter_mut().zip(&self.in1) {
+            *f = leg.amp * phase.amplitude(leg.dir.dot(w12));
+        }
+        for (r, leg) in self.rev_sens.iter_mut().zip(&self.out1) {
+            *r = leg.amp * phase.amplitude(-w12.dot(leg.dir));
+        }
+    }
+
+    /// Fills `a` with the next-event values of vertex `x_b` reached along `w_in` (Eq. 38).
+    pub(crate) fn vertex(&mut self, x: DVec3, w_in: DVec3, coherence: Coherence) {
+        let (m, k, phase) = (self.scene.medium(), self.k, self.scene.phase());
+        for (f, v) in self.fwd_sens.iter_mut().zip(self.scene.sensors()) {
+            let leg = v.leg(m, k, x);
+            *f = leg.amp * phase.amplitude(w_in.dot(leg.dir));
+        }
+        match coherence {
+            Coherence::ForwardOnly => {
+                for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
+                    *a = self.fwd_src[p.source] * self.fwd_sens[p.sensor];
+                }
+            }
+            Coherence::ForwardAndReversed => {
+                for (r, s) in self.rev_src.iter_mut().zip(self.scene.sources()) {
+                    let leg = s.leg(m, k, x);
+                    *r = leg.amp * phase.amplitude(-leg.dir.dot(w_in));
+                }
+                for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
+                    *a = self.fwd_src[p.source] * self.fwd_sens[p.sensor]
+                        + self.rev_src[p.source] * self.rev_sens[p.sensor];
+                }
+            }
+        }
+    }
+}
+
+/// The factor on `weight * a a^H` for a vertex `b >= 2`: 1/2 with reversed paths (Eq. 36: each
+/// vertex set is sampled in both orders), 1 with forward paths only.
+pub(crate) fn coherence_factor(c: Coherence) -> f64 {
+    match c {
+        Coherence::ForwardAndReversed => 0.5,
+        Coherence::ForwardOnly => 1.0,
+    }
+}

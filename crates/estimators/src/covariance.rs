@@ -1,0 +1,174 @@
+//! The speckle covariance estimator (Alg. 1, Eqs. 33-36) and the single-scattering estimator
+//! of Eq. 41.
+
+use crate::connect::{Connector, coherence_factor};
+use crate::driver::{Batches, CANCEL_CHECK, Progress, TARGET_BATCHES, run_ordered};
+use crate::moments::{Moments, rank1_upper};
+use crate::{Coherence, EstimatorError, MatrixEstimate, Scene};
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_medium::Medium;
+use speckle_paths::{PathRng, Vertex, VertexSink};
+use speckle_phase::PhaseFunction;
+
+/// Options of a covariance render.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CovarianceOptions {
+    /// Number of sampled sub-paths `N` (at least 2, so that standard errors exist).
+    pub paths: u64,
+    /// Seed; path `n` draws from stream `n` of this seed.
+    pub seed: u64,
+    /// Forward and reversed paths, or forward only.
+    pub coherence: Coherence,
+}
+
+/// A covariance estimate `C[(i1, v1), (i2, v2)]` over all pairs of a scene, split by path length.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CovarianceEstimate {
+    /// Contribution of single-scattering paths (`B = 1`).
+    pub single: MatrixEstimate,
+    /// Contribution of multiple-scattering paths (`B >= 2`).
+    pub multiple: MatrixEstimate,
+    /// The covariance, `single + multiple`, with standard errors that account for the
+    /// correlation of the two parts within a path.
+    pub total: MatrixEstimate,
+    /// Number of sampled sub-paths.
+    pub paths: u64,
+}
+
+struct Batch {
+    single: Vec<Complex64>,
+    multiple: Vec<Complex64>,
+}
+
+struct CovarianceSink<'c, 's, M, P> {
+    conn: &'c mut Connector<'s, M, P>,
+    conj: Vec<Complex64>,
+    batch: &'c mut Batch,
+    coherence: Coherence,
+    factor: f64,
+}
+
+impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
+    fn first(&mut self, x1: DVec3, weight: f64, _rng: &mut PathRng) {
+        // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
+        self.conn.first(x1);
+        rank1_upper(&mut self.batch.single, &self.conn.a, &mut self.conj, weight);
+    }
+
+    fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+        if v.index == 2 {
+            self.conn.second(v.w12);
+        }
+        self.conn.vertex(v.x, v.w_in, self.coherence);
+        rank1_upper(
+            &mut self.batch.multiple,
+            &self.conn.a,
+            &mut self.conj,
+            self.factor * v.weight,
+        );
+    }
+}
+
+fn check_paths(paths: u64) -> Result<(), EstimatorError> {
+    if paths < 2 {
+        return Err(EstimatorError::InvalidInput {
+            field: "paths".into(),
+            reason: format!("at least 2 paths are needed for a standard error (got {paths})"),
+        });
+    }
+    Ok(())
+}
+
+/// Renders the covariance of all pairs of `scene` (Alg. 1 with the weights of
+/// `notes/conventions.md`, derived from the sampling densities actually used).
+///
+/// Deterministic: the same seed gives bitwise the same result for any number of threads.
+pub fn render_covariance<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    progress: &dyn Progress,
+) -> Result<CovarianceEstimate, EstimatorError> {
+    check_paths(options.paths)?;
+    let tracer = scene.tracer()?;
+    let j = scene.len();
+    let batches = Batches::about(options.paths, TARGET_BATCHES);
+    let zero = Complex64::new(0.0, 0.0);
+    let work = |b: usize| {
+        let mut conn = Connector::new(scene);
+        let mut batch = Batch {
+            single: vec![zero; j * j],
+            multiple: vec![zero; j * j],
+        };
+        let mut sink = CovarianceSink {
+            conn: &mut conn,
+            conj: vec![zero; j],
+            batch: &mut batch,
+            coherence: options.coherence,
+            factor: coherence_factor(options.coherence),
+        };
+        let range = batches.range(b);
+        for path in range.clone() {
+            if path % CANCEL_CHECK == 0 && progress.cancelled() {
+                return None;
+            }
+            tracer.trace(&mut PathRng::new(options.seed, path), &mut sink);
+        }
+        progress.advance(range.end - range.start);
+        Some((range.end - range.start, batch))
+    };
+    let (mut single, mut multiple, mut total) = (Moments::new(j), Moments::new(j), Moments::new(j));
+    let done = run_ordered(batches.count(), 2 * j * j * 16, work, |_, (n, b)| {
+        single.add_batch(n, |i| b.single[i]);
+        multiple.add_batch(n, |i| b.multiple[i]);
+        total.add_batch(n, |i| b.single[i] + b.multiple[i]);
+    });
+    if !done {
+        return Err(EstimatorError::Cancelled);
+    }
+    Ok(CovarianceEstimate {
+        single: single.finish(),
+        multiple: multiple.finish(),
+        total: total.finish(),
+        paths: options.paths,
+    })
+}
+
+/// The single-scattering covariance of Eq. 41,
+/// `C = s(i1.v1) s(i2.v2)^* int sigma_s(x) upsilon(i1->x) upsilon(x->v1) (upsilon(i2->x) upsilon(x->v2))^* dx`,
+/// estimated by sampling only first vertices (no path tracing). Outside the memory-effect range
+/// it is the whole covariance (Sec. 7). `options.coherence` is irrelevant here.
+pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    progress: &dyn Progress,
+) -> Result<MatrixEstimate, EstimatorError> {
+    check_paths(options.paths)?;
+    let tracer = scene.tracer()?;
+    let j = scene.len();
+    let batches = Batches::about(options.paths, TARGET_BATCHES);
+    let zero = Complex64::new(0.0, 0.0);
+    let work = |b: usize| {
+        let mut conn = Connector::new(scene);
+        let mut sum = vec![zero; j * j];
+        let mut conj = vec![zero; j];
+        let range = batches.range(b);
+        for path in range.clone() {
+            if path % CANCEL_CHECK == 0 && progress.cancelled() {
+                return None;
+            }
+            let (x1, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
+            conn.first(x1);
+            rank1_upper(&mut sum, &conn.a, &mut conj, w);
+        }
+        progress.advance(range.end - range.start);
+        Some((range.end - range.start, sum))
+    };
+    let mut m = Moments::new(j);
+    if !run_ordered(batches.count(), j * j * 16, work, |_, (n, s)| {
+        m.add_batch(n, |i| s[i])
+    }) {
+        return Err(EstimatorError::Cancelled);
+    }
+    Ok(m.finish())
+}

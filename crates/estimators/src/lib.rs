@@ -1,0 +1,77 @@
+//! Speckle mean, covariance and field estimators (Bar et al. 2019, Secs. 4-5, 7).
+//!
+//! All estimates are in the absolute units of `notes/conventions.md`: a plane wave has unit
+//! amplitude, a point source is `e^{ikr}/r`, a far-field sensor reports the scattering amplitude
+//! `A(v)` of `u(R v) = A(v) e^{ikR}/R`, a point sensor the field value.
+//!
+//! - [`speckle_mean`]: the mean field (Eq. 20 and its far-field form), in closed form.
+//! - [`render_covariance`]: the covariance of all pairs of a list of (source, sensor) pairs
+//!   (Alg. 1), with forward and reversed paths (coherent backscattering) or forward paths only,
+//!   split into single- and multiple-scattering parts, each with standard errors.
+//! - [`render_single_scattering`]: the single-scattering covariance of Eq. 41 alone, without
+//!   path tracing.
+//! - [`render_fields`]: realizations of the field vector (Alg. 2) whose covariance is the above.
+//!
+//! Design decision: every estimator is built on one per-vertex connection routine
+//! ([`Scene`]'s sources and sensors connected to `x1` and `x_b`), and one deterministic batch
+//! driver: paths draw from counter-based streams of their global index, batches are merged in
+//! order, so the same seed gives bitwise the same numbers for any thread count. Standard errors
+//! come from batch means over 128 batches.
+//!
+//! ```
+//! use speckle_estimators::*;
+//! use speckle_medium::{Aabb, DVec3, HomogeneousBox};
+//! use speckle_paths::TracerConfig;
+//! use speckle_phase::Phase;
+//! let slab = Aabb::centered(DVec3::ZERO, DVec3::new(20.0, 20.0, 5.0)).unwrap();
+//! let medium = HomogeneousBox::from_mean_free_path(slab, 5.0, 1.0).unwrap();
+//! let sensors = (0..4).map(|n| Sensor::far_field(DVec3::new(0.05 * n as f64, 0.0, 1.0)).unwrap()).collect();
+//! let scene = Scene::new(medium, Phase::hg(0.5).unwrap(), 1.0,
+//!     vec![Source::plane_wave(DVec3::Z).unwrap()], sensors, Pair::all(1, 4), TracerConfig::default()).unwrap();
+//! let opts = CovarianceOptions { paths: 2000, seed: 1, coherence: Coherence::ForwardAndReversed };
+//! let c = render_covariance(&scene, &opts, &NoProgress).unwrap();
+//! assert_eq!(c.total.value.rows(), 4);
+//! assert!(c.total.value.get(0, 0).re > 0.0);
+//! ```
+
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+mod connect;
+mod covariance;
+mod driver;
+mod endpoints;
+mod fields;
+mod matrix;
+mod mean;
+mod moments;
+mod scene;
+
+pub use covariance::{
+    CovarianceEstimate, CovarianceOptions, render_covariance, render_single_scattering,
+};
+pub use driver::{NoProgress, Progress};
+pub use endpoints::{Leg, Pair, Sensor, Source};
+pub use fields::{FieldEstimate, FieldOptions, render_fields};
+pub use matrix::{CMatrix, MatrixEstimate};
+pub use mean::{speckle_mean, speckle_means};
+pub use scene::{Coherence, Scene};
+
+/// Errors of the estimators.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EstimatorError {
+    /// An input is invalid; `field` names it.
+    #[error("{field}: {reason}")]
+    InvalidInput {
+        /// The offending field.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The path sampler rejected its configuration.
+    #[error(transparent)]
+    Path(#[from] speckle_paths::PathError),
+    /// The render was cancelled through [`Progress::cancelled`].
+    #[error("the render was cancelled")]
+    Cancelled,
+}

@@ -1,0 +1,251 @@
+//! The speckle mean (Bar et al. 2019, Eq. 20, and its far-field form, App. Eq. 48 of the HTML
+//! version).
+//!
+//! - A point endpoint on either side: the mean is the attenuated direct path,
+//!   `m = tau(i, v) mu(i -> v)` (Eq. 20): point to point `tau e^{ikr}/r`, plane wave to point
+//!   `tau e^{ik i.q}`, point to far field `tau e^{-ik v.p}`, with `tau` from the optical depth
+//!   along the straight line.
+//! - Plane wave to far field: every path's first scatterer `x` contributes the unattenuated
+//!   incident phase, the scatterer's amplitude and the mean (attenuated) field from `x` to the
+//!   sensor: `m = n sqrt(c_s) s(i.v) int e^{ik (i - v).x} tau(x, v) dx` over the medium.
+//!   The factor `n sqrt(c_s)` is not a bulk parameter; it is closed with the optical theorem for
+//!   the forward amplitude (`n sqrt(c_s) s(1) = i k sigma_t / (4 pi)`, which makes the mean field
+//!   decay as `e^{-sigma_t d / 2}`, the attenuation the estimators use):
+//!   `n sqrt(c_s) s(i.v) = (i k sigma_t / (4 pi)) s(i.v) / s(1)`. For a slab at normal incidence
+//!   this gives exactly the transmitted coherent field `e^{-sigma_t L / 2}` (an area `A` has the
+//!   forward amplitude `(i k A / 2 pi)(1 - e^{-sigma_t L / 2})`, Babinet's black-screen limit).
+//!   The mean is significant only within about `lambda / size` of the forward and specular
+//!   directions. The volume integral is evaluated exactly along `v` and by composite 4-point
+//!   Gauss-Legendre quadrature over each exit face, with 48 to 512 panels per axis (no wider than
+//!   about one radian of phase where 512 suffice); relative accuracy about 1e-4 (tested against a
+//!   brute-force volume quadrature).
+
+use crate::{EstimatorError, Pair, Scene, Sensor, Source};
+use glam::DVec3;
+use num_complex::Complex64;
+use rayon::prelude::*;
+use speckle_medium::{Medium, field_attenuation};
+use speckle_phase::PhaseFunction;
+use std::f64::consts::PI;
+
+/// The speckle mean of one pair.
+pub fn speckle_mean<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    pair: Pair,
+) -> Result<Complex64, EstimatorError> {
+    let (m, k) = (scene.medium(), scene.wavenumber());
+    let src = scene.sources()[pair.source];
+    let sen = scene.sensors()[pair.sensor];
+    Ok(match (src, sen) {
+        (Source::Point { position: p }, Sensor::Point { position: q }) => {
+            let r = (q - p).length();
+            Complex64::from_polar(field_attenuation(m.optical_depth(p, q)) / r, k * r)
+        }
+        (Source::PlaneWave { direction: i }, Sensor::Point { position: q }) => {
+            Complex64::from_polar(
+                field_attenuation(m.optical_depth_to_infinity(q, -i)),
+                k * i.dot(q),
+            )
+        }
+        (Source::Point { position: p }, Sensor::FarField { direction: v }) => {
+            Complex64::from_polar(
+                field_attenuation(m.optical_depth_to_infinity(p, v)),
+                -k * v.dot(p),
+            )
+        }
+        (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
+            let sigma_t = m
+                .uniform_sigma_t()
+                .ok_or_else(|| EstimatorError::InvalidInput {
+                    field: "medium".into(),
+                    reason: "the far-field to far-field mean needs a homogeneous medium".into(),
+                })?;
+            let phase = scene.phase();
+            let amp = Complex64::new(0.0, k * sigma_t / (4.0 * PI)) * phase.amplitude(i.dot(v))
+                / phase.amplitude(1.0);
+            amp * box_integral(m.bounds(), k, sigma_t, i, v)
+        }
+    })
+}
+
+/// The speckle means of all pairs of a scene, in pair order.
+pub fn speckle_means<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+) -> Result<Vec<Complex64>, EstimatorError> {
+    scene
+        .pairs()
+        .par_iter()
+        .map(|&p| speckle_mean(scene, p))
+        .collect()
+}
+
+const GL4: [(f64, f64); 4] = [
+    (-0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
+    (-0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+    (0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+    (0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
+];
+
+/// `int_box e^{ik (i - v).x} e^{-sigma_t d(x, v) / 2} dx`, `d(x, v)` the distance from `x` to the
+/// boundary along `v`. Each point is written `x = y - t v` with `y` on the face where the ray
+/// along `v` exits, `dx = |n . v| dy dt`; the `t` integral is closed form.
+fn box_integral(b: &speckle_medium::Aabb, k: f64, sigma_t: f64, i: DVec3, v: DVec3) -> Complex64 {
+    let q = i - v;
+    // alpha = sigma_t / 2 + i k q.v: int_0^T e^{-alpha t} dt = (1 - e^{-alpha T}) / alpha.
+    let alpha = Complex64::new(0.5 * sigma_t, k * q.dot(v));
+    let g = |t: f64| {
+        if alpha.norm() * t < 1e-8 {
+            Complex64::new(t, 0.0)
+        } else {
+            (Complex64::new(1.0, 0.0) - (-alpha * t).exp()) / alpha
+        }
+    };
+    let (lo, hi) = (b.min(), b.max());
+    let mut total = Complex64::new(0.0, 0.0);
+    for axis in 0..3 {
+        let vn = v[axis];
+        if vn == 0.0 {
+            continue;
+        }
+        let plane = if vn > 0.0 { hi[axis] } else { lo[axis] };
+        let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+        let panels = |a: usize| {
+            let ext = hi[a] - lo[a];
+            let rate = k * q.length() + sigma_t;
+            ((ext * rate).ceil() as usize).clamp(48, 512)
+        };
+        let (n1, n2) = (panels(a1), panels(a2));
+        let (h1, h2) = ((hi[a1] - lo[a1]) / n1 as f64, (hi[a2] - lo[a2]) / n2 as f64);
+        let mut face = Complex64::new(0.0, 0.0);
+        for p1 in 0..n1 {
+            for &(x1, w1) in &GL4 {
+                let c1 = lo[a1] + h1 * (p1 as f64 + 0.5 + 0.5 * x1);
+                for p2 in 0..n2 {
+                    for &(x2, w2) in &GL4 {
+                        let c2 = lo[a2] + h2 * (p2 as f64 + 0.5 + 0.5 * x2);
+                        let mut y = DVec3::ZERO;
+                        y[axis] = plane;
+                        y[a1] = c1;
+                        y[a2] = c2;
+                        let t = b.exit_distance(y, -v);
+                        face += Complex64::from_polar(w1 * w2, k * q.dot(y)) * g(t);
+                    }
+                }
+            }
+        }
+        total += face * (0.25 * h1 * h2 * vn.abs());
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speckle_medium::{Aabb, HomogeneousBox};
+    use speckle_paths::TracerConfig;
+    use speckle_phase::Phase;
+
+    fn scene(src: Source, sen: Sensor, size: DVec3) -> Scene<HomogeneousBox, Phase> {
+        let b = Aabb::centered(DVec3::ZERO, size).unwrap();
+        let m = HomogeneousBox::new(b, 0.2, 0.05).unwrap();
+        Scene::new(
+            m,
+            Phase::hg(0.3).unwrap(),
+            1.0,
+            vec![src],
+            vec![sen],
+            Pair::all(1, 1),
+            TracerConfig::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn forward_mean_of_a_box_is_babinet_times_extinction() {
+        // Normal incidence, forward sensor: m = (i k A / 2 pi)(1 - e^{-sigma_t L / 2}).
+        let size = DVec3::new(6.0, 4.0, 3.0);
+        let s = scene(
+            Source::PlaneWave {
+                direction: DVec3::Z,
+            },
+            Sensor::FarField {
+                direction: DVec3::Z,
+            },
+            size,
+        );
+        let m = speckle_mean(
+            &s,
+            Pair {
+                source: 0,
+                sensor: 0,
+            },
+        )
+        .unwrap();
+        let k = 2.0 * PI;
+        let expect =
+            Complex64::new(0.0, k * 24.0 / (2.0 * PI)) * (1.0 - (-0.25f64 * 3.0 / 2.0).exp());
+        assert!(
+            (m - expect).norm() < 1e-10 * expect.norm(),
+            "{m} vs {expect}"
+        );
+    }
+
+    #[test]
+    fn oblique_far_field_mean_matches_brute_force() {
+        let size = DVec3::new(2.0, 1.5, 1.0);
+        let i = DVec3::new(0.2, 0.1, 1.0).normalize();
+        let v = DVec3::new(0.25, 0.05, 1.0).normalize();
+        let s = scene(
+            Source::PlaneWave { direction: i },
+            Sensor::FarField { direction: v },
+            size,
+        );
+        let b = *s.medium().bounds();
+        let (k, st) = (2.0 * PI, 0.25);
+        let got = box_integral(&b, k, st, i, v);
+        // Brute-force midpoint rule in 3D.
+        let n = 120;
+        let mut acc = Complex64::new(0.0, 0.0);
+        for a in 0..n {
+            for c in 0..n {
+                for d in 0..n {
+                    let u = [
+                        (a as f64 + 0.5) / n as f64,
+                        (c as f64 + 0.5) / n as f64,
+                        (d as f64 + 0.5) / n as f64,
+                    ];
+                    let x = b.lerp(u);
+                    acc += Complex64::from_polar(
+                        (-0.5 * st * b.exit_distance(x, v)).exp(),
+                        k * (i - v).dot(x),
+                    );
+                }
+            }
+        }
+        acc *= b.volume() / (n * n * n) as f64;
+        assert!((got - acc).norm() < 2e-4 * acc.norm(), "{got} vs {acc}");
+    }
+
+    #[test]
+    fn point_endpoint_means_are_attenuated_direct_paths() {
+        let size = DVec3::new(2.0, 2.0, 2.0);
+        let p = DVec3::new(0.0, 0.0, -3.0);
+        let q = DVec3::new(0.0, 0.0, 4.0);
+        let s = scene(
+            Source::Point { position: p },
+            Sensor::Point { position: q },
+            size,
+        );
+        let m = speckle_mean(
+            &s,
+            Pair {
+                source: 0,
+                sensor: 0,
+            },
+        )
+        .unwrap();
+        // 2 units of medium with sigma_t = 0.25 on a 7-unit line.
+        let expect = Complex64::from_polar((-0.25f64).exp() / 7.0, 2.0 * PI * 7.0);
+        assert!((m - expect).norm() < 1e-12);
+    }
+}

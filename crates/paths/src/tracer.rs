@@ -1,0 +1,207 @@
+//! The sub-path tracer.
+
+use crate::first::{FirstDirectionSampler, FirstVertexSampler};
+use crate::{FirstDirection, FirstVertex, PathError, PathRng};
+use glam::DVec3;
+use speckle_medium::Medium;
+use speckle_phase::PhaseFunction;
+
+/// How sub-paths are sampled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TracerConfig {
+    /// Strategy for `x1`.
+    pub first_vertex: FirstVertex,
+    /// Strategy for the first direction.
+    pub first_direction: FirstDirection,
+    /// Paths stop after this many vertices. The default (`u32::MAX`) never truncates; a smaller
+    /// value drops the contribution of longer paths (a bias the caller accepts).
+    pub max_vertices: u32,
+}
+
+impl Default for TracerConfig {
+    fn default() -> Self {
+        Self {
+            first_vertex: FirstVertex::Uniform,
+            first_direction: FirstDirection::Uniform,
+            max_vertices: u32::MAX,
+        }
+    }
+}
+
+/// A vertex `x_b`, `b >= 2`, of a sub-path, with what next-event estimation needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vertex {
+    /// Vertex index `b >= 2`.
+    pub index: u32,
+    /// The first vertex `x1`.
+    pub x1: DVec3,
+    /// Unit direction from `x1` to `x2`.
+    pub w12: DVec3,
+    /// This vertex `x_b`.
+    pub x: DVec3,
+    /// Unit direction from `x_{b-1}` to `x_b`.
+    pub w_in: DVec3,
+    /// Throughput over sampling density, `sigma_s(x1) / (q_o(x1) p(w1))` (Eq. 36 without the
+    /// forward/reversed factor 1/2).
+    pub weight: f64,
+}
+
+/// Receives the vertices of a sub-path as they are sampled.
+pub trait VertexSink {
+    /// The first vertex `x1`, with the single-scattering weight `sigma_s(x1) / q_o(x1)`.
+    fn first(&mut self, x1: DVec3, weight: f64, rng: &mut PathRng);
+    /// A vertex `x_b`, `b >= 2`.
+    fn vertex(&mut self, v: &Vertex, rng: &mut PathRng);
+}
+
+/// Samples sub-paths in a medium with a phase function (Alg. 1, with roulette at every `b >= 2`).
+#[derive(Debug, Clone)]
+pub struct Tracer<'a, M, P> {
+    medium: &'a M,
+    phase: &'a P,
+    first_vertex: FirstVertexSampler,
+    first_direction: FirstDirectionSampler,
+    max_vertices: u32,
+}
+
+impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
+    /// A tracer for `medium` and `phase` with the given strategies.
+    pub fn new(medium: &'a M, phase: &'a P, config: TracerConfig) -> Result<Self, PathError> {
+        if config.max_vertices == 0 {
+            return Err(PathError::InvalidMaxVertices);
+        }
+        Ok(Self {
+            medium,
+            phase,
+            first_vertex: FirstVertexSampler::new(config.first_vertex, medium)?,
+            first_direction: FirstDirectionSampler::new(config.first_direction)?,
+            max_vertices: config.max_vertices,
+        })
+    }
+
+    /// The medium.
+    pub fn medium(&self) -> &'a M {
+        self.medium
+    }
+
+    /// The phase function.
+    pub fn phase(&self) -> &'a P {
+        self.phase
+    }
+
+    /// Samples only a first vertex and returns it with its single-scattering weight
+    /// `sigma_s(x1) / q_o(x1)` (for estimators of single scattering alone, Eq. 41).
+    #[inline]
+    pub fn sample_first_vertex(&self, rng: &mut PathRng) -> (DVec3, f64) {
+        let (x1, q) = self.first_vertex.sample(self.medium, rng.next_3());
+        (x1, self.medium.sigma_s(x1) / q)
+    }
+
+    /// Samples one sub-path, handing every vertex to `sink`; returns the number of vertices.
+    pub fn trace<S: VertexSink>(&self, rng: &mut PathRng, sink: &mut S) -> u32 {
+        let (x1, w_single) = self.sample_first_vertex(rng);
+        sink.first(x1, w_single, rng);
+        let (w12, p_w) = self.first_direction.sample(self.phase, rng.next_2());
+        if p_w <= 0.0 {
+            return 1;
+        }
+        let weight = w_single / p_w;
+        let (mut x, mut dir, mut b) = (x1, w12, 1u32);
+        while b < self.max_vertices {
+            let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
+                break;
+            };
+            let next = x + d * dir;
+            // Russian roulette on the albedo at the new vertex.
+            if rng.next_f64() >= self.medium.albedo(next) {
+                break;
+            }
+            b += 1;
+            sink.vertex(
+                &Vertex {
+                    index: b,
+                    x1,
+                    w12,
+                    x: next,
+                    w_in: dir,
+                    weight,
+                },
+                rng,
+            );
+            dir = self.phase.sample_direction(dir, rng.next_2());
+            x = next;
+        }
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speckle_medium::{Aabb, HomogeneousBox};
+    use speckle_phase::Phase;
+
+    struct Count {
+        single: f64,
+        vertices: Vec<f64>,
+    }
+    impl VertexSink for Count {
+        fn first(&mut self, _x1: DVec3, weight: f64, _rng: &mut PathRng) {
+            self.single += weight;
+        }
+        fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+            let i = v.index as usize - 2;
+            if self.vertices.len() <= i {
+                self.vertices.resize(i + 1, 0.0);
+            }
+            self.vertices[i] += v.weight;
+        }
+    }
+
+    #[test]
+    fn weights_match_the_scattering_volume() {
+        // The mean single-scattering weight is V = sigma_s |box|; a second vertex occurs with
+        // probability P2 (flight stays inside, survives roulette), and the weight there is 4 pi V.
+        let b = Aabb::new(DVec3::ZERO, DVec3::new(2.0, 3.0, 4.0)).unwrap();
+        let m = HomogeneousBox::new(b, 0.5, 0.25).unwrap();
+        let t = Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap();
+        let mut c = Count {
+            single: 0.0,
+            vertices: vec![],
+        };
+        let n = 20_000;
+        for i in 0..n {
+            t.trace(&mut PathRng::new(5, i), &mut c);
+        }
+        let v = 0.5 * 24.0;
+        assert!((c.single / n as f64 - v).abs() < 1e-9 * v);
+        let w2 = c.vertices[0] / n as f64 / (4.0 * std::f64::consts::PI * v);
+        // Survival to x2 is at most the albedo 2/3.
+        assert!(w2 > 0.1 && w2 < 2.0 / 3.0, "{w2}");
+    }
+
+    #[test]
+    fn rejects_bad_configuration() {
+        let b = Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap();
+        let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+        let p = Phase::Isotropic;
+        let cfg = |fv, fd, n| TracerConfig {
+            first_vertex: fv,
+            first_direction: fd,
+            max_vertices: n,
+        };
+        use FirstDirection as D;
+        use FirstVertex as V;
+        assert!(Tracer::new(&m, &p, cfg(V::Uniform, D::Uniform, 0)).is_err());
+        let bad = DVec3::new(f64::NAN, 0.0, 1.0);
+        assert!(
+            Tracer::new(
+                &m,
+                &p,
+                cfg(V::ExponentialDepth { direction: bad }, D::Uniform, 9)
+            )
+            .is_err()
+        );
+        assert!(Tracer::new(&m, &p, cfg(V::Uniform, D::Phase { axis: DVec3::ZERO }, 9)).is_err());
+    }
+}
