@@ -1,1 +1,110 @@
-fn main() {}
+//! Criterion benchmarks of covariance and field rendering.
+//!
+//! Reports paths per second (`*/paths`) and vertex-to-endpoint connections per second
+//! (`*/connections`: every sampled vertex, single-scattering ones included, is connected to every
+//! source and every sensor). Fixed seeds; run with `cargo bench --bench render`.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use speckle::estimators::{
+    Coherence, CovarianceOptions, FieldOptions, NoProgress, Pair, Scene, Sensor, Source,
+    render_covariance, render_fields,
+};
+use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::paths::{PathRng, TracerConfig, Vertex, VertexSink};
+use speckle::phase::Phase;
+use std::hint::black_box;
+
+/// A 40 x 40 x 10 wavelength slab, mean free path 5 (optical depth 2), HG g = 0.5, with
+/// `n_src` plane waves and `n_sens` far-field sensors around the forward direction.
+fn scene(n_src: usize, n_sens: usize) -> Scene<HomogeneousBox, Phase> {
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(40.0, 40.0, 10.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(b, 5.0, 1.0).unwrap();
+    let tilt = |n: usize, step: f64| DVec3::new(step * n as f64, 0.0, 1.0);
+    let src = (0..n_src)
+        .map(|n| Source::plane_wave(tilt(n, 0.01)).unwrap())
+        .collect();
+    let sen = (0..n_sens)
+        .map(|n| Sensor::far_field(tilt(n, 0.005)).unwrap())
+        .collect();
+    Scene::new(
+        m,
+        Phase::hg(0.5).unwrap(),
+        1.0,
+        src,
+        sen,
+        Pair::all(n_src, n_sens),
+        TracerConfig::default(),
+    )
+    .unwrap()
+}
+
+struct Count(u64);
+impl VertexSink for Count {
+    fn first(&mut self, _: DVec3, _: f64, _: &mut PathRng) {
+        self.0 += 1;
+    }
+    fn vertex(&mut self, _: &Vertex, _: &mut PathRng) {
+        self.0 += 1;
+    }
+}
+
+/// Mean number of vertices per path of a scene, from its own tracer.
+fn vertices_per_path(s: &Scene<HomogeneousBox, Phase>, paths: u64) -> f64 {
+    let t = s.tracer().unwrap();
+    let mut c = Count(0);
+    for p in 0..paths {
+        t.trace(&mut PathRng::new(9, p), &mut c);
+    }
+    c.0 as f64 / paths as f64
+}
+
+fn covariance(c: &mut Criterion) {
+    let paths = 4096;
+    for (n_src, n_sens) in [(1, 1), (2, 16), (2, 64)] {
+        let s = scene(n_src, n_sens);
+        let endpoints = (n_src + n_sens) as f64;
+        let connections = (vertices_per_path(&s, 20_000) * endpoints * paths as f64) as u64;
+        let opts = CovarianceOptions {
+            paths,
+            seed: 1,
+            coherence: Coherence::ForwardAndReversed,
+        };
+        let id = format!("J={}", s.len());
+        for (unit, n) in [("paths", paths), ("connections", connections)] {
+            let mut g = c.benchmark_group(format!("estimators/covariance/{unit}"));
+            g.sample_size(10).throughput(Throughput::Elements(n));
+            g.bench_function(BenchmarkId::from_parameter(&id), |b| {
+                b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))
+            });
+            g.finish();
+        }
+    }
+}
+
+fn fields(c: &mut Criterion) {
+    let n = 4096u64;
+    for (n_src, n_sens) in [(1, 64), (4, 1024)] {
+        let s = scene(n_src, n_sens);
+        let endpoints = (n_src + n_sens) as f64;
+        let connections = (vertices_per_path(&s, 20_000) * endpoints * n as f64) as u64;
+        let opts = FieldOptions {
+            realizations: 1,
+            paths_per_realization: n,
+            seed: 1,
+            coherence: Coherence::ForwardAndReversed,
+            add_mean: false,
+        };
+        let id = format!("J={}", s.len());
+        for (unit, count) in [("paths", n), ("connections", connections)] {
+            let mut g = c.benchmark_group(format!("estimators/fields/{unit}"));
+            g.sample_size(10).throughput(Throughput::Elements(count));
+            g.bench_function(BenchmarkId::from_parameter(&id), |b| {
+                b.iter(|| black_box(render_fields(&s, &opts, &NoProgress).unwrap()))
+            });
+            g.finish();
+        }
+    }
+}
+
+criterion_group!(benches, covariance, fields);
+criterion_main!(benches);

@@ -36,6 +36,19 @@ pub struct CovarianceEstimate {
     pub paths: u64,
 }
 
+impl CovarianceEstimate {
+    /// Combines two independent estimates (for example runs with different seeds) into their
+    /// sample-weighted mean; see [`MatrixEstimate::merge`].
+    pub fn merge(&self, other: &Self) -> Self {
+        Self {
+            single: self.single.merge(&other.single),
+            multiple: self.multiple.merge(&other.multiple),
+            total: self.total.merge(&other.total),
+            paths: self.paths + other.paths,
+        }
+    }
+}
+
 struct Batch {
     single: Vec<Complex64>,
     multiple: Vec<Complex64>,

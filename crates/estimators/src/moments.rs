@@ -63,11 +63,16 @@ impl Moments {
         for r in 0..j {
             for c in r..j {
                 let idx = r * j + c;
-                let mean = self.sum[idx] / n;
-                let e = Complex64::new(
+                let mut mean = self.sum[idx] / n;
+                let mut e = Complex64::new(
                     se_of(self.sq_re[idx], mean.re),
                     se_of(self.sq_im[idx], mean.im),
                 );
+                if r == c {
+                    // A diagonal entry is a sum of |a|^2 terms: real up to rounding of (a w) conj(a).
+                    mean.im = 0.0;
+                    e.im = 0.0;
+                }
                 value.as_mut_slice()[idx] = mean;
                 value.as_mut_slice()[c * j + r] = mean.conj();
                 se.as_mut_slice()[idx] = e;
@@ -77,6 +82,7 @@ impl Moments {
         MatrixEstimate {
             value,
             std_error: se,
+            samples: self.paths,
         }
     }
 }

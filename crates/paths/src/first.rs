@@ -14,6 +14,11 @@ pub enum FirstVertex {
     /// entering through the face that light from `direction` meets first, at the medium's
     /// extinction rate and truncated to the box; uniform across the other two axes. Concentrates
     /// samples where a plane wave arrives in an optically thick medium.
+    ///
+    /// Variance warning: with reversed paths the reversed term connects the source to the *last*
+    /// vertex, so a rare deep first vertex carries a weight up to `e^{OD}`. In thick slabs seen in
+    /// transmission with forward and reversed paths, prefer [`FirstVertex::Uniform`] (at optical
+    /// depth 10 the standard error was about 20 times larger than forward-only).
     ExponentialDepth {
         /// The illumination's propagation direction.
         direction: DVec3,
