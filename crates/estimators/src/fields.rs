@@ -37,7 +37,7 @@ pub struct FieldEstimate {
 }
 
 /// Paths per work item of a field render (fixed, so results do not depend on threads).
-const FIELD_BATCH: u64 = 4096;
+const FIELD_BATCH: u64 = 1024;
 
 struct FieldSink<'c, 's, M, P> {
     conn: &'c mut Connector<'s, M, P>,

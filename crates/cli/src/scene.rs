@@ -1,0 +1,937 @@
+//! Loading a scene file: TOML parsing, validation with field names, expansion of generator and
+//! grid entries, and construction of the library's [`Scene`].
+
+use crate::InputError;
+use crate::spec::{
+    CoherenceSpec, FirstDirectionSpec, FirstVertexSpec, MediumSpec, PhaseSpec, SceneFile,
+    SensorSpec, SourceSpec,
+};
+use serde_json::{Value, json};
+use speckle::estimators::{Coherence, EstimatorError, Pair, Scene, Sensor, Source};
+use speckle::medium::{Aabb, DVec3, HomogeneousBox, Medium};
+use speckle::paths::{FirstDirection, FirstVertex, TracerConfig};
+use speckle::phase::{Complex64, Phase, PhaseFunction, TabulatedAmplitude};
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// At most this many sensors (or sources) after expanding grids and generators.
+const MAX_ENDPOINTS: usize = 1 << 20;
+
+/// The scene as the library sees it.
+pub type SpeckleScene = Scene<HomogeneousBox, Phase>;
+
+/// Command-line values that replace those of the scene file (before validation).
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    /// `render.paths`.
+    pub paths: Option<u64>,
+    /// `render.seed`.
+    pub seed: Option<u64>,
+    /// `render.coherence = "forward_only"`.
+    pub forward_only: bool,
+    /// `render.realizations`.
+    pub realizations: Option<usize>,
+    /// `render.paths_per_realization`.
+    pub paths_per_realization: Option<u64>,
+    /// `render.add_mean = false`.
+    pub no_mean: bool,
+    /// `output.dir`.
+    pub out: Option<PathBuf>,
+    /// `output.png = false`.
+    pub no_png: bool,
+    /// `output.png_realizations`.
+    pub png_realizations: Option<usize>,
+}
+
+/// The layout of a sensor list that is one 2D grid (an image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Grid {
+    /// `"far_grid"` or `"point_grid"`.
+    pub kind: &'static str,
+    /// Columns.
+    pub nx: usize,
+    /// Rows.
+    pub ny: usize,
+}
+
+/// A validated scene and everything the commands report about it.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The document as parsed, with the overrides and the name filled in.
+    pub file: SceneFile,
+    /// Output prefix.
+    pub name: String,
+    /// Where the scene came from (a path, or `<embedded NAME>`).
+    pub origin: String,
+    /// The library scene.
+    pub scene: SpeckleScene,
+    /// One JSON description per expanded source.
+    pub sources: Vec<Value>,
+    /// One JSON description per expanded sensor.
+    pub sensors: Vec<Value>,
+    /// Set when the sensors form one image.
+    pub grid: Option<Grid>,
+    /// Whether the pairs are all (source, sensor) combinations, source-major.
+    pub all_pairs: bool,
+    /// The covariance/field coherence setting.
+    pub coherence: Coherence,
+}
+
+fn bad(field: impl Display, reason: impl Display) -> InputError {
+    InputError(format!("{field}: {reason}"))
+}
+
+fn positive(field: impl Display, v: f64) -> Result<f64, InputError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(bad(field, format!("must be finite and > 0 (got {v})")))
+    }
+}
+
+fn non_negative(field: impl Display, v: f64) -> Result<f64, InputError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(bad(field, format!("must be finite and >= 0 (got {v})")))
+    }
+}
+
+fn finite(field: impl Display, v: f64) -> Result<f64, InputError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(bad(field, format!("must be finite (got {v})")))
+    }
+}
+
+fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, InputError> {
+    for (i, c) in v.iter().enumerate() {
+        finite(format!("{field}[{i}]"), *c)?;
+    }
+    Ok(DVec3::from_array(v))
+}
+
+fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, InputError> {
+    let d = vec3(field, v)?;
+    let len = d.length();
+    if len > 0.0 && len.is_finite() {
+        Ok(d / len)
+    } else {
+        Err(bad(field, format!("must be a non-zero vector (got {v:?})")))
+    }
+}
+
+fn outside(field: &str, p: DVec3, b: &Aabb, what: &str) -> Result<DVec3, InputError> {
+    if b.contains(p) {
+        Err(bad(
+            field,
+            format!(
+                "{what} {:?} lies in or on the medium (box from {:?} to {:?}); point endpoints \
+                 must be outside it",
+                p.to_array(),
+                b.min().to_array(),
+                b.max().to_array()
+            ),
+        ))
+    } else {
+        Ok(p)
+    }
+}
+
+/// Rodrigues' rotation of `v` about the unit `axis` by `angle` radians.
+fn rotate(v: DVec3, axis: DVec3, angle: f64) -> DVec3 {
+    let (s, c) = angle.sin_cos();
+    v * c + axis.cross(v) * s + axis * axis.dot(v) * (1.0 - c)
+}
+
+fn arr(v: DVec3) -> [f64; 3] {
+    v.to_array()
+}
+
+/// Reads the TOML document: syntax and type errors name the key path and the line.
+fn parse(text: &str) -> Result<SceneFile, InputError> {
+    let de = toml::Deserializer::parse(text)
+        .map_err(|e| InputError(e.to_string().trim_end().to_string()))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let mut path = e.path().to_string();
+        let inner = e.into_inner();
+        let message = inner.message().to_string();
+        // Unknown keys inside tagged tables are reported at the table; name the key itself.
+        if let Some(key) = message
+            .strip_prefix("unknown field `")
+            .and_then(|r| r.split('`').next())
+            && !path.ends_with(key)
+        {
+            path = if path == "." {
+                key.to_string()
+            } else {
+                format!("{path}.{key}")
+            };
+        }
+        let detail = inner.to_string();
+        if path == "." || path.is_empty() {
+            InputError(detail.trim_end().to_string())
+        } else {
+            // `detail` is the location (line, column, excerpt) followed by `message`.
+            let location = detail.trim_end();
+            let location = location.strip_suffix(message.as_str()).unwrap_or(location);
+            InputError(format!("{path}: {message}\n{}", location.trim_end()))
+        }
+    })
+}
+
+/// Loads and validates a scene file.
+pub fn load_file(path: &Path, overrides: &Overrides) -> Result<Loaded, InputError> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        InputError(format!(
+            "cannot read the scene file {}: {e}",
+            path.display()
+        ))
+    })?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    load_str(&text, &path.display().to_string(), &base, &stem, overrides)
+}
+
+/// Loads and validates a scene from its text; relative input files are looked up in `base`.
+pub fn load_str(
+    text: &str,
+    origin: &str,
+    base: &Path,
+    default_name: &str,
+    overrides: &Overrides,
+) -> Result<Loaded, InputError> {
+    let with_origin = |e: InputError| InputError(format!("{origin}: {}", e.0));
+    let mut file = parse(text).map_err(with_origin)?;
+    apply(&mut file, overrides);
+    build(file, origin, base, default_name).map_err(with_origin)
+}
+
+fn apply(file: &mut SceneFile, o: &Overrides) {
+    let r = &mut file.render;
+    r.paths = o.paths.unwrap_or(r.paths);
+    r.seed = o.seed.unwrap_or(r.seed);
+    if o.forward_only {
+        r.coherence = CoherenceSpec::ForwardOnly;
+    }
+    r.realizations = o.realizations.unwrap_or(r.realizations);
+    r.paths_per_realization = o.paths_per_realization.unwrap_or(r.paths_per_realization);
+    if o.no_mean {
+        r.add_mean = false;
+    }
+    let out = &mut file.output;
+    if let Some(dir) = &o.out {
+        out.dir = dir.clone();
+    }
+    if o.no_png {
+        out.png = false;
+    }
+    out.png_realizations = o.png_realizations.unwrap_or(out.png_realizations);
+}
+
+fn check_name(name: &str) -> Result<(), InputError> {
+    let ok = !name.is_empty()
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    if ok {
+        Ok(())
+    } else {
+        Err(bad(
+            "name",
+            format!(
+                "must be non-empty, not start with '.', and use only letters, digits, '_', '-' \
+                 and '.' (got {name:?})"
+            ),
+        ))
+    }
+}
+
+fn build_medium(m: &MediumSpec) -> Result<HomogeneousBox, InputError> {
+    let mut size = [0.0; 3];
+    for (i, s) in m.size.iter().enumerate() {
+        size[i] = positive(format!("medium.size[{i}]"), *s)?;
+    }
+    let center = vec3("medium.center", m.center)?;
+    let b = Aabb::centered(center, DVec3::from_array(size)).map_err(|e| bad("medium", e))?;
+    let either = "give either sigma_s (and optionally sigma_a) or mean_free_path (and optionally \
+                  albedo)";
+    let medium = match (m.sigma_s, m.sigma_a, m.mean_free_path, m.albedo) {
+        (Some(s), a, None, None) => {
+            let s = positive("medium.sigma_s", s)?;
+            let a = non_negative("medium.sigma_a", a.unwrap_or(0.0))?;
+            HomogeneousBox::new(b, s, a)
+        }
+        (None, None, Some(l), a) => {
+            let l = positive("medium.mean_free_path", l)?;
+            let a = a.unwrap_or(1.0);
+            if !(a.is_finite() && a > 0.0 && a <= 1.0) {
+                return Err(bad(
+                    "medium.albedo",
+                    format!("must be finite and in (0, 1] (got {a})"),
+                ));
+            }
+            HomogeneousBox::from_mean_free_path(b, l, a)
+        }
+        (None, None, None, _) => return Err(bad("medium", format!("no coefficients: {either}"))),
+        (None, Some(_), None, _) => {
+            return Err(bad(
+                "medium.sigma_s",
+                format!("missing (sigma_a alone is not a medium): {either}"),
+            ));
+        }
+        (Some(_), _, Some(_), _) | (None, Some(_), Some(_), _) => {
+            return Err(bad(
+                "medium.mean_free_path",
+                format!("cannot be combined with sigma_s/sigma_a: {either}"),
+            ));
+        }
+        (Some(_), _, None, Some(_)) => {
+            return Err(bad(
+                "medium.albedo",
+                format!("cannot be combined with sigma_s: {either}"),
+            ));
+        }
+    };
+    medium.map_err(|e| bad("medium", e))
+}
+
+fn build_phase(p: &PhaseSpec, base: &Path) -> Result<Phase, InputError> {
+    match p {
+        PhaseSpec::Isotropic {} => Ok(Phase::Isotropic),
+        PhaseSpec::Hg { g } => {
+            if g.is_finite() && g.abs() < 1.0 {
+                Phase::hg(*g).map_err(|e| bad("phase.g", e))
+            } else {
+                Err(bad(
+                    "phase.g",
+                    format!("must be finite with |g| < 1 (got {g})"),
+                ))
+            }
+        }
+        PhaseSpec::Tabulated { file } => {
+            let path = base.join(file);
+            let table = read_table(&path).map_err(|e| bad("phase.file", e))?;
+            Ok(Phase::Tabulated(Arc::new(table)))
+        }
+    }
+}
+
+/// Reads a CSV amplitude table. The first line that is neither blank nor a `#` comment is the
+/// header: `theta_rad,re,im`, `theta_deg,re,im` or `mu,re,im`.
+fn read_table(path: &Path) -> Result<TabulatedAmplitude, String> {
+    let shown = path.display();
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {shown}: {e}"))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let (hl, header) = lines
+        .next()
+        .ok_or_else(|| format!("{shown} has no header line"))?;
+    let cols: Vec<String> = header
+        .split(',')
+        .map(|c| c.trim().to_ascii_lowercase())
+        .collect();
+    let abscissa = match cols.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+        [a @ ("theta_rad" | "theta_deg" | "mu"), "re", "im"] => a.to_string(),
+        _ => {
+            return Err(format!(
+                "{shown} line {hl}: the header must be `theta_rad,re,im`, `theta_deg,re,im` or \
+                 `mu,re,im` (got `{header}`)"
+            ));
+        }
+    };
+    let (mut x, mut s) = (Vec::new(), Vec::new());
+    for (n, line) in lines {
+        let v: Vec<&str> = line.split(',').map(str::trim).collect();
+        if v.len() != 3 {
+            return Err(format!(
+                "{shown} line {n}: expected 3 comma-separated numbers (got `{line}`)"
+            ));
+        }
+        let mut num = [0.0; 3];
+        for (k, t) in v.iter().enumerate() {
+            num[k] = t
+                .parse::<f64>()
+                .ok()
+                .filter(|f| f.is_finite())
+                .ok_or_else(|| {
+                    format!(
+                        "{shown} line {n}: `{t}` in column {} is not a finite number",
+                        k + 1
+                    )
+                })?;
+        }
+        x.push(num[0]);
+        s.push(Complex64::new(num[1], num[2]));
+    }
+    if x.len() < 2 {
+        return Err(format!("{shown}: at least two rows are needed"));
+    }
+    let table = match abscissa.as_str() {
+        "mu" => TabulatedAmplitude::new(x, s),
+        unit => {
+            let scale = if unit == "theta_deg" {
+                std::f64::consts::PI / 180.0
+            } else {
+                1.0
+            };
+            let theta: Vec<f64> = x.iter().map(|t| t * scale).collect();
+            let pi = std::f64::consts::PI;
+            if let Some(i) = theta.iter().position(|t| !(-1e-9..=pi + 1e-9).contains(t)) {
+                return Err(format!(
+                    "{shown}: row {} has an angle outside [0, pi] ({} {unit})",
+                    i + 1,
+                    x[i]
+                ));
+            }
+            TabulatedAmplitude::from_angles(&theta, &s)
+        }
+    };
+    table.map_err(|e| format!("{shown}: {e}"))
+}
+
+/// Expands `[[sources]]`.
+fn build_sources(specs: &[SourceSpec], b: &Aabb) -> Result<(Vec<Source>, Vec<Value>), InputError> {
+    if specs.is_empty() {
+        return Err(bad(
+            "sources",
+            "at least one source is needed (add a [[sources]] table)",
+        ));
+    }
+    let (mut out, mut desc) = (Vec::new(), Vec::new());
+    for (i, s) in specs.iter().enumerate() {
+        let f = |k: &str| format!("sources[{i}].{k}");
+        match s {
+            SourceSpec::Plane { direction: d } => {
+                let d = direction(&f("direction"), *d)?;
+                out.push(Source::PlaneWave { direction: d });
+                desc.push(json!({"entry": i, "type": "plane", "direction": arr(d)}));
+            }
+            SourceSpec::Point { position } => {
+                let p = outside(
+                    &f("position"),
+                    vec3(&f("position"), *position)?,
+                    b,
+                    "position",
+                )?;
+                out.push(Source::Point { position: p });
+                desc.push(json!({"entry": i, "type": "point", "position": arr(p)}));
+            }
+            SourceSpec::PlaneTilts {
+                direction: d,
+                axis,
+                tilts_deg,
+            } => {
+                let d = direction(&f("direction"), *d)?;
+                let a = direction(&f("axis"), *axis)?;
+                if a.cross(d).length() < 1e-9 {
+                    return Err(bad(
+                        f("axis"),
+                        "must not be parallel to the direction (the tilts would do nothing)",
+                    ));
+                }
+                if tilts_deg.is_empty() {
+                    return Err(bad(f("tilts_deg"), "at least one tilt is needed"));
+                }
+                for (k, t) in tilts_deg.iter().enumerate() {
+                    let t = finite(format!("{}[{k}]", f("tilts_deg")), *t)?;
+                    let v = rotate(d, a, t.to_radians()).normalize();
+                    out.push(Source::PlaneWave { direction: v });
+                    desc.push(json!({"entry": i, "type": "plane", "direction": arr(v),
+                                     "tilt_deg": t}));
+                }
+            }
+        }
+        if out.len() > MAX_ENDPOINTS {
+            return Err(bad(
+                "sources",
+                format!("more than {MAX_ENDPOINTS} sources after expansion"),
+            ));
+        }
+    }
+    Ok((out, desc))
+}
+
+/// The image-plane frame of a far-field grid around the unit `c`.
+fn grid_frame(c: DVec3) -> (DVec3, DVec3) {
+    let e1 = if DVec3::Y.cross(c).length() > 1e-9 {
+        DVec3::Y.cross(c).normalize()
+    } else {
+        DVec3::X.cross(c).normalize()
+    };
+    (e1, c.cross(e1))
+}
+
+/// Grid coordinate `i` of `n` over the inclusive range `[lo, hi]` (the centre when `n = 1`).
+fn lerp(range: [f64; 2], i: usize, n: usize) -> f64 {
+    if n == 1 {
+        0.5 * (range[0] + range[1])
+    } else {
+        range[0] + (range[1] - range[0]) * i as f64 / (n - 1) as f64
+    }
+}
+
+fn grid_counts(field: &str, nx: usize, ny: usize) -> Result<(), InputError> {
+    if nx == 0 {
+        return Err(bad(format!("{field}.nx"), "must be >= 1 (got 0)"));
+    }
+    if ny == 0 {
+        return Err(bad(format!("{field}.ny"), "must be >= 1 (got 0)"));
+    }
+    if nx.saturating_mul(ny) > MAX_ENDPOINTS {
+        return Err(bad(
+            field,
+            format!("nx * ny = {nx} * {ny} exceeds {MAX_ENDPOINTS} sensors"),
+        ));
+    }
+    Ok(())
+}
+
+/// Expands `[[sensors]]`.
+#[allow(clippy::type_complexity)]
+fn build_sensors(
+    specs: &[SensorSpec],
+    b: &Aabb,
+) -> Result<(Vec<Sensor>, Vec<Value>, Option<Grid>), InputError> {
+    if specs.is_empty() {
+        return Err(bad(
+            "sensors",
+            "at least one sensor is needed (add a [[sensors]] table)",
+        ));
+    }
+    let (mut out, mut desc) = (Vec::new(), Vec::new());
+    for (i, s) in specs.iter().enumerate() {
+        let e = format!("sensors[{i}]");
+        let f = |k: &str| format!("sensors[{i}].{k}");
+        match s {
+            SensorSpec::Far { direction: d } => {
+                let d = direction(&f("direction"), *d)?;
+                out.push(Sensor::FarField { direction: d });
+                desc.push(json!({"entry": i, "type": "far", "direction": arr(d)}));
+            }
+            SensorSpec::Point { position } => {
+                let p = outside(
+                    &f("position"),
+                    vec3(&f("position"), *position)?,
+                    b,
+                    "position",
+                )?;
+                out.push(Sensor::Point { position: p });
+                desc.push(json!({"entry": i, "type": "point", "position": arr(p)}));
+            }
+            SensorSpec::FarGrid {
+                center,
+                theta_x_deg,
+                theta_y_deg,
+                nx,
+                ny,
+            } => {
+                let c = direction(&f("center"), *center)?;
+                for (key, range) in [("theta_x_deg", theta_x_deg), ("theta_y_deg", theta_y_deg)] {
+                    for (k, t) in range.iter().enumerate() {
+                        let field = format!("{}[{k}]", f(key));
+                        let t = finite(&field, *t)?;
+                        if t.abs() >= 90.0 {
+                            return Err(bad(field, format!("must be in (-90, 90) (got {t})")));
+                        }
+                    }
+                }
+                grid_counts(&e, *nx, *ny)?;
+                let (e1, e2) = grid_frame(c);
+                for iy in 0..*ny {
+                    let ty = lerp(*theta_y_deg, iy, *ny);
+                    for ix in 0..*nx {
+                        let tx = lerp(*theta_x_deg, ix, *nx);
+                        let v = (e1 * tx.to_radians().tan() + e2 * ty.to_radians().tan() + c)
+                            .normalize();
+                        out.push(Sensor::FarField { direction: v });
+                        desc.push(json!({"entry": i, "type": "far", "direction": arr(v),
+                                         "ix": ix, "iy": iy, "theta_x_deg": tx,
+                                         "theta_y_deg": ty}));
+                    }
+                }
+            }
+            SensorSpec::PointGrid {
+                origin,
+                step_x,
+                step_y,
+                nx,
+                ny,
+            } => {
+                let o = vec3(&f("origin"), *origin)?;
+                let sx = vec3(&f("step_x"), *step_x)?;
+                let sy = vec3(&f("step_y"), *step_y)?;
+                grid_counts(&e, *nx, *ny)?;
+                if *nx > 1 && sx == DVec3::ZERO {
+                    return Err(bad(f("step_x"), "must be non-zero when nx > 1"));
+                }
+                if *ny > 1 && sy == DVec3::ZERO {
+                    return Err(bad(f("step_y"), "must be non-zero when ny > 1"));
+                }
+                for iy in 0..*ny {
+                    for ix in 0..*nx {
+                        let p = o + sx * ix as f64 + sy * iy as f64;
+                        outside(&e, p, b, &format!("grid point (ix = {ix}, iy = {iy}) at"))?;
+                        out.push(Sensor::Point { position: p });
+                        desc.push(json!({"entry": i, "type": "point", "position": arr(p),
+                                         "ix": ix, "iy": iy}));
+                    }
+                }
+            }
+        }
+        if out.len() > MAX_ENDPOINTS {
+            return Err(bad(
+                "sensors",
+                format!("more than {MAX_ENDPOINTS} sensors after expansion"),
+            ));
+        }
+    }
+    let grid = match specs {
+        [SensorSpec::FarGrid { nx, ny, .. }] if *nx > 1 && *ny > 1 => Some(Grid {
+            kind: "far_grid",
+            nx: *nx,
+            ny: *ny,
+        }),
+        [SensorSpec::PointGrid { nx, ny, .. }] if *nx > 1 && *ny > 1 => Some(Grid {
+            kind: "point_grid",
+            nx: *nx,
+            ny: *ny,
+        }),
+        _ => None,
+    };
+    Ok((out, desc, grid))
+}
+
+/// The first plane-wave direction, used as the default axis of sampling strategies.
+fn first_plane(sources: &[Source]) -> Option<DVec3> {
+    sources.iter().find_map(|s| match s {
+        Source::PlaneWave { direction } => Some(*direction),
+        Source::Point { .. } => None,
+    })
+}
+
+fn build(
+    mut file: SceneFile,
+    origin: &str,
+    base: &Path,
+    default_name: &str,
+) -> Result<Loaded, InputError> {
+    let name = file
+        .name
+        .clone()
+        .unwrap_or_else(|| default_name.to_string());
+    check_name(&name)?;
+    file.name = Some(name.clone());
+    let wavelength = positive("wavelength", file.wavelength)?;
+    let medium = build_medium(&file.medium)?;
+    let phase = build_phase(&file.phase, base)?;
+    let bounds = *medium.bounds();
+    let (sources, source_desc) = build_sources(&file.sources, &bounds)?;
+    let (sensors, sensor_desc, grid) = build_sensors(&file.sensors, &bounds)?;
+    let (pairs, all_pairs) = match &file.pairs {
+        None => {
+            let j = sources.len().saturating_mul(sensors.len());
+            if j > MAX_ENDPOINTS * 4 {
+                return Err(bad(
+                    "sensors",
+                    format!(
+                        "{} sources x {} sensors = {j} pairs is too many",
+                        sources.len(),
+                        sensors.len()
+                    ),
+                ));
+            }
+            (Pair::all(sources.len(), sensors.len()), true)
+        }
+        Some(list) => {
+            if list.is_empty() {
+                return Err(bad(
+                    "pairs",
+                    "must not be empty (leave it out for all (source, sensor) combinations)",
+                ));
+            }
+            for (k, [s, d]) in list.iter().enumerate() {
+                if *s >= sources.len() {
+                    return Err(bad(
+                        format!("pairs[{k}]"),
+                        format!(
+                            "source index {s} is out of range (there are {} sources after \
+                             expansion)",
+                            sources.len()
+                        ),
+                    ));
+                }
+                if *d >= sensors.len() {
+                    return Err(bad(
+                        format!("pairs[{k}]"),
+                        format!(
+                            "sensor index {d} is out of range (there are {} sensors after \
+                             expansion)",
+                            sensors.len()
+                        ),
+                    ));
+                }
+            }
+            let pairs = list
+                .iter()
+                .map(|&[source, sensor]| Pair { source, sensor })
+                .collect();
+            (pairs, false)
+        }
+    };
+    let r = &file.render;
+    if r.paths < 2 {
+        return Err(bad(
+            "render.paths",
+            format!(
+                "must be >= 2 (got {}; standard errors need two paths)",
+                r.paths
+            ),
+        ));
+    }
+    if r.realizations == 0 {
+        return Err(bad("render.realizations", "must be >= 1 (got 0)"));
+    }
+    if r.paths_per_realization == 0 {
+        return Err(bad("render.paths_per_realization", "must be >= 1 (got 0)"));
+    }
+    let max_vertices = match r.max_vertices {
+        Some(0) => return Err(bad("render.max_vertices", "must be >= 1 (got 0)")),
+        Some(n) => n,
+        None => u32::MAX,
+    };
+    let plane = first_plane(&sources);
+    let first_vertex = match r.first_vertex {
+        FirstVertexSpec::Uniform => FirstVertex::Uniform,
+        FirstVertexSpec::ExponentialDepth => {
+            let direction = match r.first_vertex_direction {
+                Some(d) => direction("render.first_vertex_direction", d)?,
+                None => plane.ok_or_else(|| {
+                    bad(
+                        "render.first_vertex",
+                        "exponential_depth needs render.first_vertex_direction or a plane-wave \
+                         source",
+                    )
+                })?,
+            };
+            FirstVertex::ExponentialDepth { direction }
+        }
+    };
+    let first_direction = match r.first_direction {
+        FirstDirectionSpec::Uniform => FirstDirection::Uniform,
+        FirstDirectionSpec::Phase => {
+            let axis = match r.first_direction_axis {
+                Some(d) => direction("render.first_direction_axis", d)?,
+                None => plane.ok_or_else(|| {
+                    bad(
+                        "render.first_direction",
+                        "\"phase\" needs render.first_direction_axis or a plane-wave source",
+                    )
+                })?,
+            };
+            FirstDirection::Phase { axis }
+        }
+    };
+    let coherence = match r.coherence {
+        CoherenceSpec::ForwardAndReversed => Coherence::ForwardAndReversed,
+        CoherenceSpec::ForwardOnly => Coherence::ForwardOnly,
+    };
+    let o = &file.output;
+    if o.dir.as_os_str().is_empty() {
+        return Err(bad("output.dir", "must not be empty"));
+    }
+    if let Some(s) = o.png_scale
+        && !(1..=64).contains(&s)
+    {
+        return Err(bad(
+            "output.png_scale",
+            format!("must be in 1..=64 (got {s})"),
+        ));
+    }
+    let tracer = TracerConfig {
+        first_vertex,
+        first_direction,
+        max_vertices,
+    };
+    let scene = Scene::new(medium, phase, wavelength, sources, sensors, pairs, tracer).map_err(
+        |e| match e {
+            EstimatorError::InvalidInput { field, reason } => bad(field, reason),
+            EstimatorError::Path(p) => bad("render", p),
+            other => bad("scene", other),
+        },
+    )?;
+    Ok(Loaded {
+        file,
+        name,
+        origin: origin.to_string(),
+        scene,
+        sources: source_desc,
+        sensors: sensor_desc,
+        grid,
+        all_pairs,
+        coherence,
+    })
+}
+
+impl Loaded {
+    /// Number of pairs `J`.
+    pub fn pairs(&self) -> usize {
+        self.scene.len()
+    }
+
+    /// Number of expanded sources.
+    pub fn n_sources(&self) -> usize {
+        self.scene.sources().len()
+    }
+
+    /// Number of expanded sensors.
+    pub fn n_sensors(&self) -> usize {
+        self.scene.sensors().len()
+    }
+
+    /// The output directory.
+    pub fn out_dir(&self) -> &Path {
+        &self.file.output.dir
+    }
+
+    /// Quantities derived from the scene (for `check` and the JSON sidecars).
+    pub fn derived(&self) -> Value {
+        let m = self.scene.medium();
+        let size = m.bounds().size();
+        let lambda = self.scene.wavelength();
+        json!({
+            "sigma_s": m.scattering(),
+            "sigma_a": m.absorption(),
+            "sigma_t": m.extinction(),
+            "mean_free_path": m.mean_free_path(),
+            "albedo": m.scattering() / m.extinction(),
+            "box_min": arr(m.bounds().min()),
+            "box_max": arr(m.bounds().max()),
+            "size_in_wavelengths": arr(size / lambda),
+            "optical_thickness_xyz": arr(size * m.extinction()),
+            "scattering_volume": m.scattering_volume(),
+            "wavenumber": self.scene.wavenumber(),
+            "phase_mean_cosine": self.scene.phase().mean_cosine(),
+            "n_sources": self.n_sources(),
+            "n_sensors": self.n_sensors(),
+            "pairs": self.pairs(),
+        })
+    }
+
+    /// `(source, sensor)` of every pair, in order.
+    pub fn pair_list(&self) -> Value {
+        Value::Array(
+            self.scene
+                .pairs()
+                .iter()
+                .enumerate()
+                .map(|(j, p)| json!({"j": j, "source": p.source, "sensor": p.sensor}))
+                .collect(),
+        )
+    }
+
+    /// The sensor grid, as JSON (`null` when the sensors are not one image).
+    pub fn grid_json(&self) -> Value {
+        match self.grid {
+            Some(g) => json!({"kind": g.kind, "nx": g.nx, "ny": g.ny,
+                              "layout": "sensor index = iy * nx + ix (row-major, iy slow)"}),
+            None => Value::Null,
+        }
+    }
+
+    /// The tracer configuration, as JSON.
+    pub fn tracer_json(&self) -> Value {
+        let t = self.scene.tracer_config();
+        let first_vertex = match t.first_vertex {
+            FirstVertex::Uniform => json!({"type": "uniform"}),
+            FirstVertex::ExponentialDepth { direction } => {
+                json!({"type": "exponential_depth", "direction": arr(direction)})
+            }
+        };
+        let first_direction = match t.first_direction {
+            FirstDirection::Uniform => json!({"type": "uniform"}),
+            FirstDirection::Phase { axis } => json!({"type": "phase", "axis": arr(axis)}),
+        };
+        json!({
+            "first_vertex": first_vertex,
+            "first_direction": first_direction,
+            "max_vertices": (t.max_vertices != u32::MAX).then_some(t.max_vertices),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OK: &str = r#"
+wavelength = 1.0
+[medium]
+size = [10, 10, 4]
+mean_free_path = 5
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0, 90]
+[[sensors]]
+type = "far_grid"
+theta_x_deg = [-10, 10]
+theta_y_deg = [0, 0]
+nx = 3
+ny = 1
+"#;
+
+    fn load(text: &str) -> Result<Loaded, InputError> {
+        load_str(text, "t.toml", Path::new("."), "t", &Overrides::default())
+    }
+
+    #[test]
+    fn generators_expand_in_order() {
+        let l = load(OK).unwrap();
+        assert_eq!((l.n_sources(), l.n_sensors(), l.pairs()), (2, 3, 6));
+        let Source::PlaneWave { direction } = l.scene.sources()[1] else {
+            panic!()
+        };
+        assert!((direction - DVec3::X).length() < 1e-12);
+        let Sensor::FarField { direction } = l.scene.sensors()[0] else {
+            panic!()
+        };
+        assert!(direction.x < 0.0 && direction.y.abs() < 1e-15);
+        assert!((direction.x.atan2(direction.z).to_degrees() + 10.0).abs() < 1e-9);
+        assert!(l.grid.is_none());
+        assert_eq!(l.name, "t");
+    }
+
+    #[test]
+    fn grid_frame_is_right_handed() {
+        for c in [
+            DVec3::Z,
+            -DVec3::Z,
+            DVec3::Y,
+            DVec3::new(0.3, -0.2, 0.9).normalize(),
+        ] {
+            let (e1, e2) = grid_frame(c);
+            assert!((e1.cross(e2) - c).length() < 1e-12, "{c}");
+        }
+        let (e1, e2) = grid_frame(DVec3::Z);
+        assert!((e1 - DVec3::X).length() < 1e-15 && (e2 - DVec3::Y).length() < 1e-15);
+    }
+
+    #[test]
+    fn overrides_apply_before_validation() {
+        let o = Overrides {
+            paths: Some(0),
+            ..Default::default()
+        };
+        let e = load_str(OK, "t.toml", Path::new("."), "t", &o).unwrap_err();
+        assert!(e.0.contains("render.paths"), "{}", e.0);
+    }
+}

@@ -1,0 +1,273 @@
+//! The scene file format: the TOML document as written, before validation.
+//!
+//! Every table denies unknown keys, so a typo is an error that names the key. Values are checked
+//! (finite, positive, inside or outside the medium, ...) by [`crate::scene`], which names the
+//! offending field by its path in the document (`medium.mean_free_path`, `sources[2].direction`).
+//! The same structures serialise the scene, with defaults filled in, into the JSON sidecars.
+
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// A whole scene file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Prefix of the output files; defaults to the scene file's stem.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Wavelength, in the scene's length unit.
+    pub wavelength: f64,
+    /// The medium.
+    pub medium: MediumSpec,
+    /// The scatterers' phase function (isotropic when absent).
+    #[serde(default)]
+    pub phase: PhaseSpec,
+    /// Illuminations, expanded in order (a generator entry adds several).
+    #[serde(default)]
+    pub sources: Vec<SourceSpec>,
+    /// Sensors, expanded in order (a grid entry adds several).
+    #[serde(default)]
+    pub sensors: Vec<SensorSpec>,
+    /// Explicit `(source, sensor)` index pairs; all combinations when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pairs: Option<Vec<[usize; 2]>>,
+    /// Estimator settings.
+    #[serde(default)]
+    pub render: RenderSpec,
+    /// Output settings.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// A homogeneous box, given by `sigma_s` (+ `sigma_a`) or by `mean_free_path` (+ `albedo`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MediumSpec {
+    /// Edge lengths of the box.
+    pub size: [f64; 3],
+    /// Centre of the box.
+    #[serde(default)]
+    pub center: [f64; 3],
+    /// Scattering coefficient (per length unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_s: Option<f64>,
+    /// Absorption coefficient (per length unit), 0 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_a: Option<f64>,
+    /// Mean free path `1 / sigma_t`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_free_path: Option<f64>,
+    /// Single-scattering albedo `sigma_s / sigma_t` in `(0, 1]`, 1 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<f64>,
+}
+
+/// The phase function.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PhaseSpec {
+    /// Isotropic scattering.
+    Isotropic {},
+    /// Henyey-Greenstein with anisotropy `g`, `|g| < 1`.
+    Hg {
+        /// Mean cosine.
+        g: f64,
+    },
+    /// A tabulated complex amplitude from a CSV file (header `theta_rad,re,im`,
+    /// `theta_deg,re,im` or `mu,re,im`), relative to the scene file's directory.
+    Tabulated {
+        /// The CSV file.
+        file: PathBuf,
+    },
+}
+
+impl Default for PhaseSpec {
+    fn default() -> Self {
+        Self::Isotropic {}
+    }
+}
+
+fn z_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+fn y_axis() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// One entry of `[[sources]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SourceSpec {
+    /// A unit plane wave propagating along `direction`.
+    Plane {
+        /// Propagation direction (normalised).
+        direction: [f64; 3],
+    },
+    /// A point source `e^{ikr}/r` at `position` (outside the medium).
+    Point {
+        /// Position.
+        position: [f64; 3],
+    },
+    /// Plane waves: `direction` rotated about `axis` by each angle of `tilts_deg`.
+    PlaneTilts {
+        /// The untilted propagation direction (default `+z`).
+        #[serde(default = "z_axis")]
+        direction: [f64; 3],
+        /// Rotation axis, right-hand rule (default `+y`: positive tilts lean `+z` towards `+x`).
+        #[serde(default = "y_axis")]
+        axis: [f64; 3],
+        /// Tilt angles in degrees.
+        tilts_deg: Vec<f64>,
+    },
+}
+
+/// One entry of `[[sensors]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SensorSpec {
+    /// The far-field amplitude in `direction`.
+    Far {
+        /// Viewing direction, from the medium to the sensor (normalised).
+        direction: [f64; 3],
+    },
+    /// The field at `position` (outside the medium).
+    Point {
+        /// Position.
+        position: [f64; 3],
+    },
+    /// An `ny x nx` image of far-field directions `unit(tan(tx) e1 + tan(ty) e2 + c)` around
+    /// `center = c`, with `e1 = unit(y x c)` (or `unit(x x c)` when `c` is along `y`),
+    /// `e2 = c x e1`; `tx`, `ty` uniform over the inclusive ranges. Row-major, `ty` slow.
+    FarGrid {
+        /// The central direction (default `+z`).
+        #[serde(default = "z_axis")]
+        center: [f64; 3],
+        /// `[first, last]` angle along `e1`, degrees, in `(-90, 90)`.
+        theta_x_deg: [f64; 2],
+        /// `[first, last]` angle along `e2`, degrees, in `(-90, 90)`.
+        theta_y_deg: [f64; 2],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+    },
+    /// An `ny x nx` grid of points `origin + ix step_x + iy step_y`. Row-major, `iy` slow.
+    PointGrid {
+        /// The first point.
+        origin: [f64; 3],
+        /// Step between columns.
+        step_x: [f64; 3],
+        /// Step between rows.
+        step_y: [f64; 3],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+    },
+}
+
+/// `[render]`: estimator settings.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderSpec {
+    /// Sub-paths of a covariance or single-scattering render (at least 2).
+    pub paths: u64,
+    /// Seed of the counter-based random streams.
+    pub seed: u64,
+    /// Which path pairs the covariance includes.
+    pub coherence: CoherenceSpec,
+    /// Strategy for the first vertex of each sub-path.
+    pub first_vertex: FirstVertexSpec,
+    /// Illumination direction for `exponential_depth` (default: the first plane-wave source).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_vertex_direction: Option<[f64; 3]>,
+    /// Strategy for the first direction of each sub-path.
+    pub first_direction: FirstDirectionSpec,
+    /// Axis for `first_direction = "phase"` (default: the first plane-wave source).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_direction_axis: Option<[f64; 3]>,
+    /// Truncate paths after this many vertices (biased; unlimited when absent).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_vertices: Option<u32>,
+    /// Field realizations `R` of `speckle fields`.
+    pub realizations: usize,
+    /// Sub-paths summed into each field realization.
+    pub paths_per_realization: u64,
+    /// Add the speckle mean to every field realization.
+    pub add_mean: bool,
+}
+
+impl Default for RenderSpec {
+    fn default() -> Self {
+        Self {
+            paths: 100_000,
+            seed: 1,
+            coherence: CoherenceSpec::ForwardAndReversed,
+            first_vertex: FirstVertexSpec::Uniform,
+            first_vertex_direction: None,
+            first_direction: FirstDirectionSpec::Uniform,
+            first_direction_axis: None,
+            max_vertices: None,
+            realizations: 8,
+            paths_per_realization: 20_000,
+            add_mean: true,
+        }
+    }
+}
+
+/// `render.coherence`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoherenceSpec {
+    /// Forward and reversed paths (coherent backscattering included).
+    ForwardAndReversed,
+    /// Forward paths only.
+    ForwardOnly,
+}
+
+/// `render.first_vertex`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstVertexSpec {
+    /// Uniform in the medium (density `sigma_s / V`).
+    Uniform,
+    /// Exponential in depth along the illumination axis.
+    ExponentialDepth,
+}
+
+/// `render.first_direction`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstDirectionSpec {
+    /// Uniform on the sphere.
+    Uniform,
+    /// From the phase function around the illumination axis.
+    Phase,
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output directory, relative to the current directory (not to the scene file).
+    pub dir: PathBuf,
+    /// Write PNG previews.
+    pub png: bool,
+    /// Field PNGs are written for the first this many realizations.
+    pub png_realizations: usize,
+    /// Integer upscaling of PNGs (nearest neighbour); automatic (to about 256 pixels) when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub png_scale: Option<u32>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self {
+            dir: PathBuf::from("out"),
+            png: true,
+            png_realizations: 4,
+            png_scale: None,
+        }
+    }
+}

@@ -1,0 +1,661 @@
+//! End-to-end tests of the `speckle` binary: malformed scenes are rejected with the field named
+//! and exit code 2, renders write loadable `.npy` and JSON files, and a cancelled render writes
+//! nothing.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn speckle(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_speckle"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the speckle binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A tiny valid scene: 2 plane waves, a 3 x 2 far-field image (J = 12).
+const TINY: &str = r#"
+name = "tiny"
+wavelength = 1.0
+
+[medium]
+size = [8.0, 8.0, 3.0]
+mean_free_path = 4.0
+albedo = 0.9
+
+[phase]
+type = "hg"
+g = 0.4
+
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0.0, 3.0]
+
+[[sensors]]
+type = "far_grid"
+theta_x_deg = [-5.0, 5.0]
+theta_y_deg = [-2.0, 2.0]
+nx = 3
+ny = 2
+
+[render]
+paths = 4000
+seed = 5
+realizations = 3
+paths_per_realization = 500
+
+[output]
+dir = "res"
+png_realizations = 2
+"#;
+
+/// A minimal valid scene whose parts the malformed cases replace.
+fn scene(
+    top: &str,
+    medium: &str,
+    phase: &str,
+    sources: &str,
+    sensors: &str,
+    render: &str,
+) -> String {
+    format!(
+        "{top}\n[medium]\n{medium}\n[phase]\n{phase}\n{sources}\n{sensors}\n[render]\n{render}\n"
+    )
+}
+
+const TOP: &str = "wavelength = 1.0";
+const MEDIUM: &str = "size = [4.0, 4.0, 2.0]\nmean_free_path = 2.0";
+const PHASE: &str = "type = \"hg\"\ng = 0.5";
+const SOURCES: &str = "[[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 1.0]";
+const SENSORS: &str = "[[sensors]]\ntype = \"far\"\ndirection = [0.0, 0.0, 1.0]";
+const RENDER: &str = "paths = 100";
+
+#[test]
+fn the_base_of_the_malformed_cases_is_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "ok.toml",
+        &scene(TOP, MEDIUM, PHASE, SOURCES, SENSORS, RENDER),
+    );
+    let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("pairs J              1"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+#[test]
+fn malformed_scenes_name_the_field_and_exit_with_2() {
+    let m = |medium: &str| scene(TOP, medium, PHASE, SOURCES, SENSORS, RENDER);
+    let p = |phase: &str| scene(TOP, MEDIUM, phase, SOURCES, SENSORS, RENDER);
+    let so = |sources: &str| scene(TOP, MEDIUM, PHASE, sources, SENSORS, RENDER);
+    let se = |sensors: &str| scene(TOP, MEDIUM, PHASE, SOURCES, sensors, RENDER);
+    let r = |render: &str| scene(TOP, MEDIUM, PHASE, SOURCES, SENSORS, render);
+    let t = |top: &str| scene(top, MEDIUM, PHASE, SOURCES, SENSORS, RENDER);
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "nan wavelength",
+            t("wavelength = nan"),
+            "wavelength: must be finite and > 0 (got NaN)",
+        ),
+        (
+            "negative wavelength",
+            t("wavelength = -1.0"),
+            "wavelength: must be finite",
+        ),
+        (
+            "missing wavelength",
+            t("name = \"x\""),
+            "missing field `wavelength`",
+        ),
+        ("string wavelength", t("wavelength = \"1\""), "wavelength"),
+        (
+            "unknown top-level key",
+            t("wavelength = 1.0\nwavelenght = 1.0"),
+            "wavelenght",
+        ),
+        (
+            "bad name",
+            t("wavelength = 1.0\nname = \"../x\""),
+            "name: must be",
+        ),
+        (
+            "infinite mean free path",
+            m("size = [4.0, 4.0, 2.0]\nmean_free_path = inf"),
+            "medium.mean_free_path: must be finite and > 0 (got inf)",
+        ),
+        (
+            "negative mean free path",
+            m("size = [4.0, 4.0, 2.0]\nmean_free_path = -1.0"),
+            "medium.mean_free_path: must be finite and > 0 (got -1)",
+        ),
+        (
+            "negative sigma_s",
+            m("size = [4.0, 4.0, 2.0]\nsigma_s = -0.1"),
+            "medium.sigma_s",
+        ),
+        (
+            "negative sigma_a",
+            m("size = [4.0, 4.0, 2.0]\nsigma_s = 0.1\nsigma_a = -0.1"),
+            "medium.sigma_a",
+        ),
+        (
+            "nan sigma_a",
+            m("size = [4.0, 4.0, 2.0]\nsigma_s = 0.1\nsigma_a = nan"),
+            "medium.sigma_a",
+        ),
+        (
+            "albedo above one",
+            m("size = [4.0, 4.0, 2.0]\nmean_free_path = 2.0\nalbedo = 1.5"),
+            "medium.albedo",
+        ),
+        (
+            "two parametrisations",
+            m("size = [4.0, 4.0, 2.0]\nmean_free_path = 2.0\nsigma_s = 0.5"),
+            "medium.mean_free_path: cannot be combined",
+        ),
+        (
+            "no coefficients",
+            m("size = [4.0, 4.0, 2.0]"),
+            "medium: no coefficients",
+        ),
+        (
+            "negative size",
+            m("size = [4.0, 4.0, -2.0]\nmean_free_path = 2.0"),
+            "medium.size[2]",
+        ),
+        (
+            "short size",
+            m("size = [4.0, 4.0]\nmean_free_path = 2.0"),
+            "medium.size",
+        ),
+        (
+            "unknown medium key",
+            m("size = [4.0, 4.0, 2.0]\nsigm_s = 0.5"),
+            "medium.sigm_s",
+        ),
+        (
+            "g of one",
+            p("type = \"hg\"\ng = 1.0"),
+            "phase.g: must be finite with |g| < 1",
+        ),
+        ("g below minus one", p("type = \"hg\"\ng = -1.5"), "phase.g"),
+        ("nan g", p("type = \"hg\"\ng = nan"), "phase.g"),
+        (
+            "isotropic with g",
+            p("type = \"isotropic\"\ng = 0.5"),
+            "phase.g",
+        ),
+        ("unknown phase type", p("type = \"mie\""), "phase.type"),
+        (
+            "missing tabulated file",
+            p("type = \"tabulated\"\nfile = \"nope.csv\""),
+            "phase.file: cannot read",
+        ),
+        (
+            "malformed tabulated file",
+            p("type = \"tabulated\"\nfile = \"bad.csv\""),
+            "phase.file: ",
+        ),
+        ("no sources", so(""), "sources: at least one source"),
+        (
+            "empty source list",
+            scene(
+                "wavelength = 1.0\nsources = []",
+                MEDIUM,
+                PHASE,
+                "",
+                SENSORS,
+                RENDER,
+            ),
+            "sources: at least one source",
+        ),
+        (
+            "zero direction",
+            so("[[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 0.0]"),
+            "sources[0].direction: must be a non-zero vector",
+        ),
+        (
+            "nan direction",
+            so("[[sources]]\ntype = \"plane\"\ndirection = [0.0, nan, 1.0]"),
+            "sources[0].direction[1]",
+        ),
+        (
+            "bad source type",
+            so("[[sources]]\ntype = \"planar\"\ndirection = [0.0, 0.0, 1.0]"),
+            "sources[0].type",
+        ),
+        (
+            "misspelt source key",
+            so("[[sources]]\ntype = \"plane\"\ndirektion = [0.0, 0.0, 1.0]"),
+            "sources[0].direktion",
+        ),
+        (
+            "point source inside the medium",
+            so(
+                "[[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 1.0]\n[[sources]]\n\
+                 type = \"point\"\nposition = [0.0, 0.0, 0.5]",
+            ),
+            "sources[1].position",
+        ),
+        (
+            "empty tilt list",
+            so("[[sources]]\ntype = \"plane_tilts\"\ntilts_deg = []"),
+            "sources[0].tilts_deg",
+        ),
+        ("no sensors", se(""), "sensors: at least one sensor"),
+        (
+            "point sensor inside the medium",
+            se("[[sensors]]\ntype = \"point\"\nposition = [0.0, 0.0, 0.0]"),
+            "sensors[0].position",
+        ),
+        (
+            "point grid crossing the medium",
+            se(
+                "[[sensors]]\ntype = \"point_grid\"\norigin = [0.0, 0.0, 5.0]\n\
+                 step_x = [0.0, 0.0, -1.0]\nstep_y = [1.0, 0.0, 0.0]\nnx = 6\nny = 1",
+            ),
+            "sensors[0]: grid point (ix = 4",
+        ),
+        (
+            "grid angle of 90 degrees",
+            se(
+                "[[sensors]]\ntype = \"far_grid\"\ntheta_x_deg = [-10.0, 90.0]\n\
+                 theta_y_deg = [0.0, 0.0]\nnx = 3\nny = 1",
+            ),
+            "sensors[0].theta_x_deg[1]",
+        ),
+        (
+            "empty grid",
+            se(
+                "[[sensors]]\ntype = \"far_grid\"\ntheta_x_deg = [-10.0, 10.0]\n\
+                 theta_y_deg = [0.0, 0.0]\nnx = 0\nny = 1",
+            ),
+            "sensors[0].nx",
+        ),
+        ("zero paths", r("paths = 0"), "render.paths: must be >= 2"),
+        ("negative seed", r("seed = -3"), "render.seed"),
+        (
+            "zero realizations",
+            r("realizations = 0"),
+            "render.realizations",
+        ),
+        (
+            "unknown coherence",
+            r("coherence = \"both\""),
+            "render.coherence",
+        ),
+        (
+            "zero max_vertices",
+            r("max_vertices = 0"),
+            "render.max_vertices",
+        ),
+        (
+            "exponential depth without a direction",
+            scene(
+                TOP,
+                MEDIUM,
+                PHASE,
+                "[[sources]]\ntype = \"point\"\nposition = [0.0, 0.0, -9.0]",
+                SENSORS,
+                "first_vertex = \"exponential_depth\"",
+            ),
+            "render.first_vertex",
+        ),
+        (
+            "pair index out of range",
+            t("wavelength = 1.0\npairs = [[0, 0], [0, 3]]"),
+            "pairs[1]: sensor index 3 is out of range",
+        ),
+        (
+            "negative pair index",
+            t("wavelength = 1.0\npairs = [[0, -1]]"),
+            "pairs[0][1]",
+        ),
+        (
+            "empty pair list",
+            t("wavelength = 1.0\npairs = []"),
+            "pairs: must not be empty",
+        ),
+        ("malformed TOML", t("wavelength = 1.0\n[medium"), "line 2"),
+        (
+            "duplicate key",
+            m("size = [4.0, 4.0, 2.0]\nmean_free_path = 2.0\nmean_free_path = 3.0"),
+            "duplicate key",
+        ),
+    ];
+    assert!(cases.len() >= 15);
+    let dir = tempfile::tempdir().unwrap();
+    write(
+        dir.path(),
+        "bad.csv",
+        "theta_deg,re,im\n0,1,0\n90,one,0\n180,1,0\n",
+    );
+    let mut failures = Vec::new();
+    for (what, text, expected) in &cases {
+        let path = write(dir.path(), "case.toml", text);
+        let o = speckle(dir.path(), &["check", path.to_str().unwrap()]);
+        let err = stderr(&o);
+        if o.status.code() != Some(2) || !err.contains(expected) || err.contains("panicked") {
+            failures.push(format!(
+                "{what}: exit {:?}, expected `{expected}` in stderr:\n{err}",
+                o.status.code()
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n---\n"));
+    assert!(
+        !dir.path().join("out").exists(),
+        "check must not write anything"
+    );
+}
+
+#[test]
+fn bad_command_lines_exit_with_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    for (args, expected) in [
+        (vec!["check", "missing.toml"], "cannot read the scene file"),
+        (vec!["covariance", tiny, "--paths", "1"], "render.paths"),
+        (vec!["covariance", tiny, "--threads", "0"], "--threads"),
+        (
+            vec!["fields", tiny, "--realizations", "0"],
+            "render.realizations",
+        ),
+        (vec!["example", "nope"], "no example called"),
+        (vec!["render"], "unrecognized subcommand"),
+    ] {
+        let o = speckle(dir.path(), &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{args:?}: {}", stderr(&o));
+    }
+    assert!(!dir.path().join("res").exists());
+}
+
+#[test]
+fn a_valid_tabulated_phase_loads_relative_to_the_scene_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    write(
+        &dir.path().join("sub"),
+        "amp.csv",
+        "# a forward-peaked amplitude\ntheta_deg,re,im\n0,2,0\n60,1,0.5\n120,0.5,0\n180,0.4,0\n",
+    );
+    let text = scene(
+        TOP,
+        MEDIUM,
+        "type = \"tabulated\"\nfile = \"amp.csv\"",
+        SOURCES,
+        SENSORS,
+        RENDER,
+    );
+    let p = write(&dir.path().join("sub"), "tab.toml", &text);
+    let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("tabulated amp.csv"), "{}", stdout(&o));
+}
+
+/// A parsed `.npy` header: (descr, fortran_order, shape) and the data offset.
+fn npy_header(bytes: &[u8]) -> (String, bool, Vec<usize>, usize) {
+    assert_eq!(&bytes[..6], b"\x93NUMPY", "magic");
+    assert_eq!(bytes[6], 1, "version 1.0");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let offset = 10 + len;
+    assert_eq!(offset % 16, 0, "data aligned");
+    let h = std::str::from_utf8(&bytes[10..offset]).unwrap();
+    assert!(h.ends_with('\n'));
+    let field = |key: &str| {
+        let start = h.find(&format!("'{key}': ")).unwrap() + key.len() + 4;
+        &h[start..]
+    };
+    let descr = field("descr")[1..].split('\'').next().unwrap().to_string();
+    let fortran = field("fortran_order").starts_with("True");
+    let shape_text = field("shape");
+    let shape = shape_text[1..shape_text.find(')').unwrap()]
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    (descr, fortran, shape, offset)
+}
+
+fn load_npy(path: &Path) -> (Vec<usize>, Vec<(f64, f64)>) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (descr, fortran, shape, offset) = npy_header(&bytes);
+    assert_eq!(descr, "<c16");
+    assert!(!fortran);
+    let n: usize = shape.iter().product();
+    assert_eq!(bytes.len() - offset, 16 * n, "{}", path.display());
+    let data = bytes[offset..]
+        .chunks_exact(16)
+        .map(|c| {
+            (
+                f64::from_le_bytes(c[..8].try_into().unwrap()),
+                f64::from_le_bytes(c[8..].try_into().unwrap()),
+            )
+        })
+        .collect();
+    (shape, data)
+}
+
+fn load_json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+#[test]
+fn covariance_writes_npy_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let o = speckle(dir.path(), &["covariance", tiny.to_str().unwrap(), "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    for kind in ["cov", "cov_single", "cov_multiple", "cov_stderr"] {
+        let (shape, data) = load_npy(&res.join(format!("tiny.{kind}.npy")));
+        assert_eq!(shape, vec![12, 12], "{kind}");
+        assert!(data.iter().all(|(a, b)| a.is_finite() && b.is_finite()));
+    }
+    let (_, cov) = load_npy(&res.join("tiny.cov.npy"));
+    // Intensities are positive and the matrix is Hermitian.
+    for i in 0..12 {
+        assert!(cov[i * 12 + i].0 > 0.0);
+        for j in 0..12 {
+            let (a, b) = (cov[i * 12 + j], cov[j * 12 + i]);
+            assert!((a.0 - b.0).abs() <= 1e-9 * a.0.abs().max(1.0) && (a.1 + b.1).abs() <= 1e-9);
+        }
+    }
+    let (shape, _) = load_npy(&res.join("tiny.mean.npy"));
+    assert_eq!(shape, vec![12]);
+    assert!(res.join("tiny.cov.png").exists());
+    let meta = load_json(&res.join("tiny.cov.json"));
+    assert_eq!(meta["command"], "covariance");
+    assert_eq!(meta["render"]["paths"], 4000);
+    assert_eq!(meta["render"]["seed"], 5);
+    assert_eq!(meta["render"]["coherence"], "forward_and_reversed");
+    assert_eq!(meta["pairs"].as_array().unwrap().len(), 12);
+    assert_eq!(meta["pairs"][7]["source"], 1);
+    assert_eq!(meta["pairs"][7]["sensor"], 1);
+    assert_eq!(meta["sources"].as_array().unwrap().len(), 2);
+    assert_eq!(meta["sensors"].as_array().unwrap().len(), 6);
+    assert_eq!(meta["scene"]["medium"]["mean_free_path"], 4.0);
+    assert_eq!(meta["derived"]["pairs"], 12);
+    assert!(meta["summary"]["mean_diagonal_total"].as_f64().unwrap() > 0.0);
+    assert!(meta["reproducibility"]["speckle_cli_version"].is_string());
+    // No temporary file is left behind.
+    let leftovers: Vec<_> = std::fs::read_dir(&res)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    for (threads, out) in [("1", "t1"), ("2", "t2"), ("3", "t3")] {
+        let o = speckle(
+            dir.path(),
+            &["covariance", tiny, "-q", "--threads", threads, "--out", out],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let a = std::fs::read(dir.path().join("t1/tiny.cov.npy")).unwrap();
+    for out in ["t2", "t3"] {
+        let b = std::fs::read(dir.path().join(out).join("tiny.cov.npy")).unwrap();
+        assert!(a == b, "{out} differs from t1");
+    }
+}
+
+#[test]
+fn fields_single_and_mean_write_their_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    let o = speckle(dir.path(), &["fields", tiny, "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let (shape, _) = load_npy(&res.join("tiny.fields.npy"));
+    assert_eq!(shape, vec![3, 2, 6]);
+    // PNGs for the first two realizations and both illuminations, none for the third.
+    for r in 0..3 {
+        for s in 0..2 {
+            let p = res.join(format!("tiny.r{r}.s{s}.png"));
+            assert_eq!(p.exists(), r < 2, "{}", p.display());
+        }
+    }
+    let png = std::fs::read(res.join("tiny.r0.s0.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let meta = load_json(&res.join("tiny.fields.json"));
+    assert_eq!(meta["render"]["realizations"], 3);
+    assert_eq!(meta["sensor_grid"]["nx"], 3);
+    assert_eq!(meta["sensor_grid"]["ny"], 2);
+
+    let o = speckle(dir.path(), &["single", tiny, "-q", "--paths", "500"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy(&res.join("tiny.single.npy"));
+    assert_eq!(shape, vec![12, 12]);
+    assert_eq!(
+        load_json(&res.join("tiny.single.json"))["render"]["paths"],
+        500
+    );
+
+    let o = speckle(dir.path(), &["mean", tiny, "--out", "m"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy(&dir.path().join("m/tiny.mean.npy"));
+    assert_eq!(shape, vec![12]);
+
+    // Explicit pairs give a (R, J) field array.
+    let explicit = TINY.replace(
+        "wavelength = 1.0",
+        "wavelength = 1.0\npairs = [[0, 0], [1, 5]]",
+    );
+    let p = write(dir.path(), "explicit.toml", &explicit);
+    let o = speckle(
+        dir.path(),
+        &["fields", p.to_str().unwrap(), "-q", "--out", "e"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy(&dir.path().join("e/tiny.fields.npy"));
+    assert_eq!(shape, vec![3, 2]);
+}
+
+#[test]
+fn a_cancelled_render_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    for args in [
+        vec!["covariance", tiny, "--paths", "2000000"],
+        vec!["single", tiny, "--paths", "20000000"],
+        vec!["fields", tiny, "--realizations", "64"],
+    ] {
+        let mut args = args;
+        args.extend(["-q", "--cancel-after-paths", "1"]);
+        let o = speckle(dir.path(), &args);
+        assert_eq!(o.status.code(), Some(130), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("no output was written"),
+            "{}",
+            stderr(&o)
+        );
+        assert!(!dir.path().join("res").exists(), "{args:?} wrote output");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_a_render_and_writes_nothing() {
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_speckle"))
+        .args(["covariance", tiny.to_str().unwrap(), "-q"])
+        .args(["--paths", "1000000000"])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "the render did not stop"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(130));
+    assert!(!dir.path().join("res").exists());
+}
+
+#[test]
+fn every_example_prints_and_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = speckle(dir.path(), &["example", "--list"]);
+    assert!(o.status.success());
+    let names: Vec<String> = stdout(&o).lines().map(str::to_string).collect();
+    assert!(names.len() >= 5 && names[0] == "default", "{names:?}");
+    for name in &names {
+        let o = speckle(dir.path(), &["example", name]);
+        assert!(o.status.success());
+        // The embedded text is the file in scenes/.
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes")
+            .join(format!("{name}.toml"));
+        assert_eq!(stdout(&o), std::fs::read_to_string(&file).unwrap());
+        let p = write(dir.path(), &format!("{name}.toml"), &stdout(&o));
+        let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+    }
+}
