@@ -24,6 +24,25 @@ pub struct RunOptions {
     pub cancel_after: Option<u64>,
 }
 
+impl RunOptions {
+    /// Runs `render` under a progress bar over `total` paths; returns its result and wall time.
+    fn timed<T>(
+        self,
+        l: &Loaded,
+        total: u64,
+        render: impl FnOnce(&CliProgress) -> Result<T, EstimatorError>,
+    ) -> anyhow::Result<(T, f64)> {
+        let progress = CliProgress::new(total, &l.name, self.quiet, self.cancel_after);
+        let start = Instant::now();
+        let result = render(&progress);
+        progress.finish();
+        Ok((
+            result.map_err(estimator_error)?,
+            start.elapsed().as_secs_f64(),
+        ))
+    }
+}
+
 /// Bytes of covariance accumulators above which a covariance render is refused.
 const MAX_COVARIANCE_BYTES: f64 = 8.0 * (1u64 << 30) as f64;
 
@@ -120,8 +139,8 @@ fn covariance_bytes(j: usize) -> f64 {
     (j as f64).powi(2) * 16.0 * (12.0 + 4.0 * threads() as f64)
 }
 
-/// `speckle covariance`.
-pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
+/// Refuses covariances too large for memory; returns `J` and the covariance options.
+fn covariance_setup(l: &Loaded) -> anyhow::Result<(usize, CovarianceOptions)> {
     let j = l.pairs();
     if covariance_bytes(j) > MAX_COVARIANCE_BYTES {
         return Err(InputError(format!(
@@ -138,13 +157,19 @@ pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         seed: r.seed,
         coherence: l.coherence,
     };
-    let progress = CliProgress::new(r.paths, &l.name, run.quiet, run.cancel_after);
-    let start = Instant::now();
-    let est = render_covariance(&l.scene, &opts, &progress);
-    progress.finish();
-    let est = est.map_err(estimator_error)?;
-    let mean = speckle_means(&l.scene).map_err(estimator_error)?;
-    let wall = start.elapsed().as_secs_f64();
+    Ok((j, opts))
+}
+
+/// `speckle covariance`.
+pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
+    let (j, opts) = covariance_setup(l)?;
+    let r = &l.file.render;
+    let ((est, mean), wall) = run.timed(l, r.paths, |p| {
+        Ok((
+            render_covariance(&l.scene, &opts, p)?,
+            speckle_means(&l.scene)?,
+        ))
+    })?;
 
     let n = &l.name;
     let shape = [j, j];
@@ -223,26 +248,9 @@ fn pretty(v: &Value) -> anyhow::Result<Vec<u8>> {
 
 /// `speckle single`.
 pub fn single(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
-    let j = l.pairs();
-    if covariance_bytes(j) > MAX_COVARIANCE_BYTES {
-        return Err(InputError(format!(
-            "{}: sensors: a covariance of J = {j} pairs is too large",
-            l.origin
-        ))
-        .into());
-    }
+    let (j, opts) = covariance_setup(l)?;
     let r = &l.file.render;
-    let opts = CovarianceOptions {
-        paths: r.paths,
-        seed: r.seed,
-        coherence: l.coherence,
-    };
-    let progress = CliProgress::new(r.paths, &l.name, run.quiet, run.cancel_after);
-    let start = Instant::now();
-    let est = render_single_scattering(&l.scene, &opts, &progress);
-    progress.finish();
-    let est = est.map_err(estimator_error)?;
-    let wall = start.elapsed().as_secs_f64();
+    let (est, wall) = run.timed(l, r.paths, |p| render_single_scattering(&l.scene, &opts, p))?;
     let n = &l.name;
     let mut staged = Staged::new(l.out_dir());
     staged.add(
@@ -349,12 +357,7 @@ pub fn fields(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         add_mean: r.add_mean,
     };
     let total = (r.realizations as u64).saturating_mul(r.paths_per_realization);
-    let progress = CliProgress::new(total, &l.name, run.quiet, run.cancel_after);
-    let start = Instant::now();
-    let est = render_fields(&l.scene, &opts, &progress);
-    progress.finish();
-    let est = est.map_err(estimator_error)?;
-    let wall = start.elapsed().as_secs_f64();
+    let (est, wall) = run.timed(l, total, |p| render_fields(&l.scene, &opts, p))?;
 
     let n = &l.name;
     let (ns, nd, rr) = (l.n_sources(), l.n_sensors(), r.realizations);
