@@ -319,34 +319,7 @@ const WIDTH_OVER_L: f64 = 100.0;
 /// [`check_against_eq39`].
 #[test]
 fn thick_slab_follows_the_diffusion_curve() {
-    let od = 10.0;
-    let xs = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0];
-    let exp = FirstVertex::ExponentialDepth {
-        direction: DVec3::Z,
-    };
-    let fo = Groups::render(
-        &diffusion_scene(od, WIDTH_OVER_L, &xs, exp),
-        37_500,
-        GROUPS,
-        101,
-        Coherence::ForwardOnly,
-    );
-    let rho_fo = correlations(&fo, xs.len());
-    eprintln!("diffusion curve, OD {od}, forward paths only, exponential first vertex:");
-    check_decay("forward only", &fo, &xs);
-    check_against_eq39("forward only", od, &xs, &rho_fo);
-
-    let fr = Groups::render(
-        &diffusion_scene(od, WIDTH_OVER_L, &xs, FirstVertex::Uniform),
-        20_000,
-        GROUPS,
-        201,
-        Coherence::ForwardAndReversed,
-    );
-    let rho_fr = correlations(&fr, xs.len());
-    eprintln!("diffusion curve, OD {od}, forward and reversed paths, uniform first vertex:");
-    check_against_eq39("forward+reversed", od, &xs, &rho_fr);
-    check_agree(&xs, &rho_fo, &rho_fr);
+    diffusion_curve(10.0, "", [37_500, 20_000], [101, 201]);
 }
 
 /// Heavier variant of (b) at optical depth 20 (band `L_eff / L = 1.071`), 1.6 M forward-only
@@ -355,30 +328,37 @@ fn thick_slab_follows_the_diffusion_curve() {
 #[test]
 #[ignore = "heavy: about 45 s in release"]
 fn thick_slab_follows_the_diffusion_curve_od20() {
-    let od = 20.0;
+    diffusion_curve(20.0, "OD 20 ", [100_000, 40_000], [301, 401]);
+}
+
+/// Renders the slab of optical depth `od` with forward-only paths (exponential-depth first vertex)
+/// and with forward and reversed paths (uniform first vertex), `paths` and `seeds` for each, and
+/// checks decay, the Eq. 39 band and the agreement of the two.
+fn diffusion_curve(od: f64, label: &str, paths: [u64; 2], seeds: [u64; 2]) {
     let xs = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0];
     let exp = FirstVertex::ExponentialDepth {
         direction: DVec3::Z,
     };
     let fo = Groups::render(
         &diffusion_scene(od, WIDTH_OVER_L, &xs, exp),
-        100_000,
+        paths[0],
         GROUPS,
-        301,
+        seeds[0],
         Coherence::ForwardOnly,
     );
     let rho_fo = correlations(&fo, xs.len());
     eprintln!("diffusion curve, OD {od}, forward paths only, exponential first vertex:");
-    check_decay("OD 20 forward only", &fo, &xs);
-    check_against_eq39("OD 20 forward only", od, &xs, &rho_fo);
+    check_decay(&format!("{label}forward only"), &fo, &xs);
+    check_against_eq39(&format!("{label}forward only"), od, &xs, &rho_fo);
     let fr = Groups::render(
         &diffusion_scene(od, WIDTH_OVER_L, &xs, FirstVertex::Uniform),
-        40_000,
+        paths[1],
         GROUPS,
-        401,
+        seeds[1],
         Coherence::ForwardAndReversed,
     );
     let rho_fr = correlations(&fr, xs.len());
-    check_against_eq39("OD 20 forward+reversed", od, &xs, &rho_fr);
+    eprintln!("diffusion curve, OD {od}, forward and reversed paths, uniform first vertex:");
+    check_against_eq39(&format!("{label}forward+reversed"), od, &xs, &rho_fr);
     check_agree(&xs, &rho_fo, &rho_fr);
 }
