@@ -51,7 +51,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     }
 
     /// Starts a path at `x1` and fills `a` with the single-scattering values
-    /// `F_j = upsilon(i_j -> x1) s(i_j . v_j) upsilon(x1 -> v_j)` (Eq. 41's integrand).
+    /// `F_j = upsilon(i_j -> x1) s(i_j -> v_j) upsilon(x1 -> v_j)` (Eq. 41's integrand).
     pub(crate) fn first(&mut self, x1: DVec3) {
         let (m, k) = (self.scene.medium(), self.k);
         for (leg, s) in self.in1.iter_mut().zip(self.scene.sources()) {
@@ -63,7 +63,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         let phase = self.scene.phase();
         for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
             let (i, o) = (&self.in1[p.source], &self.out1[p.sensor]);
-            *a = i.amp * o.amp * phase.amplitude(i.dir.dot(o.dir));
+            *a = i.amp * o.amp * phase.amplitude_between(i.dir, o.dir);
         }
     }
 
@@ -71,10 +71,10 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     pub(crate) fn second(&mut self, w12: DVec3) {
         let phase = self.scene.phase();
         for (f, leg) in self.fwd_src.iter_mut().zip(&self.in1) {
-            *f = leg.amp * phase.amplitude(leg.dir.dot(w12));
+            *f = leg.amp * phase.amplitude_between(leg.dir, w12);
         }
         for (r, leg) in self.rev_sens.iter_mut().zip(&self.out1) {
-            *r = leg.amp * phase.amplitude(-w12.dot(leg.dir));
+            *r = leg.amp * phase.amplitude_between(-w12, leg.dir);
         }
     }
 
@@ -83,7 +83,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         let (m, k, phase) = (self.scene.medium(), self.k, self.scene.phase());
         for (f, v) in self.fwd_sens.iter_mut().zip(self.scene.sensors()) {
             let leg = v.leg(m, k, x);
-            *f = leg.amp * phase.amplitude(w_in.dot(leg.dir));
+            *f = leg.amp * phase.amplitude_between(w_in, leg.dir);
         }
         match coherence {
             Coherence::ForwardOnly => {
@@ -94,7 +94,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             Coherence::ForwardAndReversed => {
                 for (r, s) in self.rev_src.iter_mut().zip(self.scene.sources()) {
                     let leg = s.leg(m, k, x);
-                    *r = leg.amp * phase.amplitude(-leg.dir.dot(w_in));
+                    *r = leg.amp * phase.amplitude_between(leg.dir, -w_in);
                 }
                 for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
                     *a = self.fwd_src[p.source] * self.fwd_sens[p.sensor]

@@ -3,7 +3,7 @@
 use crate::EstimatorError;
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_medium::{Medium, field_attenuation};
+use speckle_medium::{Dimension, Medium, field_attenuation};
 
 /// An illumination.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -13,7 +13,8 @@ pub enum Source {
         /// Propagation direction (unit).
         direction: DVec3,
     },
-    /// An isotropic point source `exp(i k |x - p|) / |x - p|` at `position`.
+    /// An isotropic point source `exp(i k |x - p|) / |x - p|` at `position` (in flatland,
+    /// `exp(i k |x - p|) / sqrt(|x - p|)`, the far-zone form of a Hankel-function source).
     Point {
         /// Position of the source.
         position: DVec3,
@@ -24,7 +25,8 @@ pub enum Source {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Sensor {
     /// The far-field amplitude `A(v)` in the unit direction `direction`, defined by
-    /// `u(R v) = A(v) exp(i k R) / R` as `R -> infinity` (`notes/conventions.md`).
+    /// `u(R v) = A(v) exp(i k R) / R` as `R -> infinity` (`notes/conventions.md`); in flatland
+    /// `u(R v) = A(v) exp(i k R) / sqrt(R)`.
     FarField {
         /// Viewing direction (unit), pointing from the medium to the sensor.
         direction: DVec3,
@@ -34,6 +36,26 @@ pub enum Sensor {
         /// Position of the sensor.
         position: DVec3,
     },
+}
+
+/// Geometric spreading of a spherical (3D, `1 / r`) or cylindrical (flatland, `1 / sqrt(r)`)
+/// wave over the distance `r`.
+#[inline]
+pub(crate) fn spreading(dimension: Dimension, r: f64) -> f64 {
+    match dimension {
+        Dimension::Three => 1.0 / r,
+        Dimension::Two => 1.0 / r.sqrt(),
+    }
+}
+
+fn in_plane(field: &'static str, v: DVec3, dimension: Dimension) -> Result<(), EstimatorError> {
+    if dimension == Dimension::Two && v.z != 0.0 {
+        return Err(EstimatorError::InvalidInput {
+            field: field.into(),
+            reason: format!("{v} must have z = 0 in a flatland scene"),
+        });
+    }
+    Ok(())
 }
 
 fn unit(field: &'static str, v: DVec3) -> Result<DVec3, EstimatorError> {
@@ -49,6 +71,7 @@ fn unit(field: &'static str, v: DVec3) -> Result<DVec3, EstimatorError> {
 }
 
 fn point<M: Medium>(field: &'static str, p: DVec3, m: &M) -> Result<DVec3, EstimatorError> {
+    in_plane(field, p, m.dimension())?;
     if !p.is_finite() {
         return Err(EstimatorError::InvalidInput {
             field: field.into(),
@@ -75,11 +98,15 @@ impl Source {
         })
     }
 
-    /// Checks the source against a medium: directions unit, points outside the medium.
+    /// Checks the source against a medium: directions unit, points outside the medium, and both
+    /// in the plane `z = 0` in flatland.
     pub(crate) fn validated<M: Medium>(self, m: &M) -> Result<Self, EstimatorError> {
         Ok(match self {
             Self::PlaneWave { direction } => Self::PlaneWave {
-                direction: unit("source.direction", direction)?,
+                direction: {
+                    in_plane("source.direction", direction, m.dimension())?;
+                    unit("source.direction", direction)?
+                },
             },
             Self::Point { position } => Self::Point {
                 position: point("source.position", position, m)?,
@@ -114,7 +141,7 @@ impl Source {
                 let r = d.length();
                 let att = field_attenuation(m.optical_depth(position, x));
                 Leg {
-                    amp: Complex64::from_polar(att / r, k * r),
+                    amp: Complex64::from_polar(att * spreading(m.dimension(), r), k * r),
                     dir: d / r,
                 }
             }
@@ -130,11 +157,15 @@ impl Sensor {
         })
     }
 
-    /// Checks the sensor against a medium: directions unit, points outside the medium.
+    /// Checks the sensor against a medium: directions unit, points outside the medium, and both
+    /// in the plane `z = 0` in flatland.
     pub(crate) fn validated<M: Medium>(self, m: &M) -> Result<Self, EstimatorError> {
         Ok(match self {
             Self::FarField { direction } => Self::FarField {
-                direction: unit("sensor.direction", direction)?,
+                direction: {
+                    in_plane("sensor.direction", direction, m.dimension())?;
+                    unit("sensor.direction", direction)?
+                },
             },
             Self::Point { position } => Self::Point {
                 position: point("sensor.position", position, m)?,
@@ -169,7 +200,7 @@ impl Sensor {
                 let r = d.length();
                 let att = field_attenuation(m.optical_depth(x, position));
                 Leg {
-                    amp: Complex64::from_polar(att / r, k * r),
+                    amp: Complex64::from_polar(att * spreading(m.dimension(), r), k * r),
                     dir: d / r,
                 }
             }

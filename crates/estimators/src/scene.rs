@@ -72,6 +72,17 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
                 format!("must be finite and > 0 (got {wavelength})"),
             ));
         }
+        if phase.dimension() != medium.dimension() {
+            return Err(invalid(
+                "phase",
+                format!(
+                    "the medium is {} but the phase function is {}; flatland scenes need a \
+                     flatland phase function and a flatland medium",
+                    medium.dimension(),
+                    phase.dimension()
+                ),
+            ));
+        }
         if sources.is_empty() {
             return Err(invalid("sources", "at least one source is needed"));
         }

@@ -1,9 +1,11 @@
 //! Axis-aligned boxes and ray/segment clipping against them.
 
 use crate::MediumError;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
+use speckle_phase::Dimension;
 
-/// An axis-aligned box `[min, max]`; a slab is a laterally wide box.
+/// An axis-aligned box `[min, max]`; a slab is a laterally wide box. A flatland box
+/// ([`Aabb::flat`]) is a rectangle in the plane `z = 0`: its `z` extent is zero.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
     min: DVec3,
@@ -27,6 +29,54 @@ impl Aabb {
             });
         }
         Ok(Self { min, max })
+    }
+
+    /// A flatland rectangle `[min, max]` in the plane `z = 0`; both extents must be finite and
+    /// positive.
+    ///
+    /// ```
+    /// use speckle_medium::{Aabb, DVec3};
+    /// use glam::DVec2;
+    /// let r = Aabb::flat(DVec2::new(-50.0, -50.0), DVec2::new(50.0, 50.0)).unwrap();
+    /// assert_eq!(r.measure(), 1e4);
+    /// assert!(r.contains(DVec3::new(1.0, 2.0, 0.0)) && !r.contains(DVec3::new(1.0, 2.0, 0.1)));
+    /// ```
+    pub fn flat(min: DVec2, max: DVec2) -> Result<Self, MediumError> {
+        if !min.is_finite() || !max.is_finite() {
+            return Err(MediumError::InvalidBox {
+                field: "corners",
+                reason: format!("corners must be finite (min {min}, max {max})"),
+            });
+        }
+        let size = max - min;
+        if size.min_element() <= 0.0 {
+            return Err(MediumError::InvalidBox {
+                field: "size",
+                reason: format!("every extent must be > 0 (got {size})"),
+            });
+        }
+        Ok(Self {
+            min: min.extend(0.0),
+            max: max.extend(0.0),
+        })
+    }
+
+    /// Flatland (zero `z` extent) or 3D.
+    pub fn dimension(&self) -> Dimension {
+        if self.max.z == self.min.z {
+            Dimension::Two
+        } else {
+            Dimension::Three
+        }
+    }
+
+    /// The volume of a 3D box, the area of a flatland rectangle.
+    pub fn measure(&self) -> f64 {
+        let s = self.size();
+        match self.dimension() {
+            Dimension::Three => s.x * s.y * s.z,
+            Dimension::Two => s.x * s.y,
+        }
     }
 
     /// A box of the given size centred on `center`.
@@ -55,7 +105,7 @@ impl Aabb {
         self.max - self.min
     }
 
-    /// Volume.
+    /// Volume (zero for a flatland rectangle; see [`Aabb::measure`]).
     pub fn volume(&self) -> f64 {
         let s = self.size();
         s.x * s.y * s.z

@@ -3,7 +3,9 @@
 use crate::{Aabb, Medium, MediumError};
 use glam::DVec3;
 
-/// Homogeneous medium with constant `sigma_s`, `sigma_a` inside a box (vacuum outside).
+/// Homogeneous medium with constant `sigma_s`, `sigma_a` inside a box (vacuum outside). In a
+/// flatland rectangle ([`Aabb::flat`]) the coefficients are per unit length as in 3D and
+/// the scattering "volume" is `sigma_s` times the area.
 ///
 /// ```
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox, Medium};
@@ -121,7 +123,7 @@ impl Medium for HomogeneousBox {
     }
 
     fn scattering_volume(&self) -> f64 {
-        self.sigma_s * self.bounds.volume()
+        self.sigma_s * self.bounds.measure()
     }
 
     fn sample_scatterer(&self, u: [f64; 3]) -> DVec3 {

@@ -27,6 +27,7 @@ mod homogeneous;
 pub use aabb::Aabb;
 pub use glam::DVec3;
 pub use homogeneous::HomogeneousBox;
+pub use speckle_phase::Dimension;
 
 /// Errors raised when a medium is built from invalid parameters.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -68,6 +69,11 @@ pub trait Medium: Send + Sync {
     /// Bounding box of the region the medium occupies (outside it the medium is vacuum).
     fn bounds(&self) -> &Aabb;
 
+    /// The space the medium lives in: 3D, or flatland when its bounds have zero `z` extent.
+    fn dimension(&self) -> Dimension {
+        self.bounds().dimension()
+    }
+
     /// Whether `x` lies inside the medium.
     fn contains(&self, x: DVec3) -> bool {
         self.bounds().contains(x)
@@ -91,7 +97,8 @@ pub trait Medium: Send + Sync {
     /// Optical depth `int sigma_t` from `x` along the unit direction `dir` to infinity.
     fn optical_depth_to_infinity(&self, x: DVec3, dir: DVec3) -> f64;
 
-    /// The total scattering volume `V = int sigma_s(x) dx` (Eq. 35), dimensionless.
+    /// The total scattering volume `V = int sigma_s(x) dx` (Eq. 35), dimensionless; in flatland
+    /// the integral is over the area, so `V` has units of length.
     fn scattering_volume(&self) -> f64;
 
     /// Samples a point with density `q_o(x) = sigma_s(x) / V` (Eq. 35) from three uniform

@@ -1,9 +1,9 @@
 //! Strategies for the first vertex and the first direction of a sub-path.
 
-use crate::{PathError, unit_direction};
+use crate::{PathError, direction_in};
 use glam::DVec3;
 use speckle_medium::Medium;
-use speckle_phase::{PhaseFunction, UNIFORM_SPHERE_PDF, uniform_sphere};
+use speckle_phase::{Dimension, PhaseFunction};
 
 /// How the first vertex `x1` of a sub-path is sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,7 +28,7 @@ pub enum FirstVertex {
 /// How the first direction `w1` is sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FirstDirection {
-    /// Uniform on the sphere, density `1 / (4 pi)`.
+    /// Uniform on the sphere, density `1 / (4 pi)` (on the circle in flatland, `1 / (2 pi)`).
     Uniform,
     /// From the medium's phase function around `axis`, density `rho(axis . w1)`.
     Phase {
@@ -60,14 +60,15 @@ impl FirstVertexSampler {
                 inv_v: 1.0 / m.scattering_volume(),
             }),
             FirstVertex::ExponentialDepth { direction } => {
-                let d = unit_direction("first_vertex.direction", direction)?;
+                let d = direction_in("first_vertex.direction", direction, m.dimension())?;
                 let rate = m
                     .uniform_sigma_t()
                     .ok_or(PathError::NeedsHomogeneous("exponential-depth"))?;
                 let axis = d.abs().max_position();
                 let size = m.bounds().size();
                 let depth = size[axis];
-                let area = size.x * size.y * size.z / depth;
+                // The transverse area (a length in flatland).
+                let area = m.bounds().measure() / depth;
                 Ok(Self::Exponential {
                     axis,
                     sign: d[axis].signum(),
@@ -120,25 +121,25 @@ impl FirstVertexSampler {
 /// A first-direction strategy with its axis validated.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum FirstDirectionSampler {
-    Uniform,
+    Uniform(Dimension),
     Phase(DVec3),
 }
 
 impl FirstDirectionSampler {
-    pub(crate) fn new(s: FirstDirection) -> Result<Self, PathError> {
+    pub(crate) fn new(s: FirstDirection, dimension: Dimension) -> Result<Self, PathError> {
         Ok(match s {
-            FirstDirection::Uniform => Self::Uniform,
+            FirstDirection::Uniform => Self::Uniform(dimension),
             FirstDirection::Phase { axis } => {
-                Self::Phase(unit_direction("first_direction.axis", axis)?)
+                Self::Phase(direction_in("first_direction.axis", axis, dimension)?)
             }
         })
     }
 
-    /// A direction and its solid-angle density.
+    /// A direction and its solid-angle density (angle density in flatland).
     #[inline]
     pub(crate) fn sample<P: PhaseFunction>(&self, p: &P, u: [f64; 2]) -> (DVec3, f64) {
         match *self {
-            Self::Uniform => (uniform_sphere(u), UNIFORM_SPHERE_PDF),
+            Self::Uniform(d) => (d.sample_uniform_direction(u), d.uniform_direction_pdf()),
             Self::Phase(axis) => {
                 let w = p.sample_direction(axis, u);
                 (w, p.pdf_direction(axis, w))

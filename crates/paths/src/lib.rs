@@ -47,6 +47,38 @@ pub enum PathError {
     /// `max_vertices` must be at least 1.
     #[error("max_vertices must be >= 1")]
     InvalidMaxVertices,
+    /// The medium and the phase function live in different dimensions.
+    #[error("the medium is {medium} but the phase function is {phase}; use a flatland phase function with a flatland medium")]
+    DimensionMismatch {
+        /// The medium's dimension.
+        medium: speckle_phase::Dimension,
+        /// The phase function's dimension.
+        phase: speckle_phase::Dimension,
+    },
+    /// A flatland direction has a non-zero `z` component.
+    #[error("{field} must lie in the plane z = 0 in flatland (got {value:?})")]
+    NotInPlane {
+        /// Name of the offending field.
+        field: &'static str,
+        /// The value given.
+        value: [f64; 3],
+    },
+}
+
+/// Validates and normalises a direction given by a user for a space of the given dimension
+/// (flatland directions must have `z = 0`).
+pub fn direction_in(
+    field: &'static str,
+    v: glam::DVec3,
+    dimension: speckle_phase::Dimension,
+) -> Result<glam::DVec3, PathError> {
+    if dimension == speckle_phase::Dimension::Two && v.z != 0.0 {
+        return Err(PathError::NotInPlane {
+            field,
+            value: v.to_array(),
+        });
+    }
+    unit_direction(field, v)
 }
 
 /// Validates and normalises a direction given by a user.

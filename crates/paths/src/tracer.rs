@@ -70,11 +70,18 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         if config.max_vertices == 0 {
             return Err(PathError::InvalidMaxVertices);
         }
+        let dimension = medium.dimension();
+        if phase.dimension() != dimension {
+            return Err(PathError::DimensionMismatch {
+                medium: dimension,
+                phase: phase.dimension(),
+            });
+        }
         Ok(Self {
             medium,
             phase,
             first_vertex: FirstVertexSampler::new(config.first_vertex, medium)?,
-            first_direction: FirstDirectionSampler::new(config.first_direction)?,
+            first_direction: FirstDirectionSampler::new(config.first_direction, dimension)?,
             max_vertices: config.max_vertices,
         })
     }
@@ -178,6 +185,46 @@ mod tests {
         let w2 = c.vertices[0] / n as f64 / (4.0 * std::f64::consts::PI * v);
         // Survival to x2 is at most the albedo 2/3.
         assert!(w2 > 0.1 && w2 < 2.0 / 3.0, "{w2}");
+    }
+
+    #[test]
+    fn flatland_paths_stay_in_the_plane_with_circle_weights() {
+        // V = sigma_s * area; the weight at x2 and beyond is 2 pi V (uniform first angle).
+        struct InPlane(u64, f64);
+        impl VertexSink for InPlane {
+            fn first(&mut self, x1: DVec3, _w: f64, _rng: &mut PathRng) {
+                assert_eq!(x1.z, 0.0);
+            }
+            fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+                assert!(v.x.z == 0.0 && v.w_in.z == 0.0 && v.w12.z == 0.0);
+                self.0 += 1;
+                self.1 = v.weight;
+            }
+        }
+        let b = Aabb::flat(glam::DVec2::ZERO, glam::DVec2::new(2.0, 3.0)).unwrap();
+        let m = HomogeneousBox::new(b, 0.5, 0.0).unwrap();
+        for p in [Phase::FlatIsotropic, Phase::flat_hg(0.6).unwrap()] {
+            let t = Tracer::new(&m, &p, TracerConfig::default()).unwrap();
+            let mut sink = InPlane(0, 0.0);
+            for i in 0..2000 {
+                t.trace(&mut PathRng::new(3, i), &mut sink);
+            }
+            assert!(sink.0 > 100);
+            let expect = 2.0 * std::f64::consts::PI * 0.5 * 6.0;
+            assert!((sink.1 - expect).abs() < 1e-12 * expect);
+        }
+        // A 3D phase function in a flatland medium, and the reverse, are refused.
+        let e = Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap_err();
+        assert!(matches!(e, PathError::DimensionMismatch { .. }), "{e}");
+        let m3 = HomogeneousBox::new(Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap(), 1.0, 0.0).unwrap();
+        assert!(Tracer::new(&m3, &Phase::FlatIsotropic, TracerConfig::default()).is_err());
+        // Out-of-plane strategy directions are refused.
+        let cfg = TracerConfig {
+            first_direction: FirstDirection::Phase { axis: DVec3::Z },
+            ..TracerConfig::default()
+        };
+        let e = Tracer::new(&m, &Phase::FlatIsotropic, cfg).unwrap_err();
+        assert!(matches!(e, PathError::NotInPlane { .. }), "{e}");
     }
 
     #[test]

@@ -16,10 +16,17 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod dimension;
+mod flat;
 mod hg;
+mod linear;
 mod sphere;
 mod tabulated;
 
+pub use dimension::Dimension;
+pub use flat::{
+    FlatHenyeyGreenstein, FlatIsotropic, FlatTabulatedAmplitude, rotate_in_plane, signed_angle,
+};
 pub use hg::HenyeyGreenstein;
 pub use num_complex::Complex64;
 pub use sphere::{UNIFORM_SPHERE_PDF, orthonormal_basis, uniform_sphere};
@@ -68,6 +75,19 @@ pub trait PhaseFunction: Send + Sync {
     fn pdf_direction(&self, incoming: DVec3, outgoing: DVec3) -> f64 {
         self.density(incoming.dot(outgoing))
     }
+
+    /// The space the function is normalised in: the sphere (3D, the default) or the circle
+    /// (flatland).
+    fn dimension(&self) -> Dimension {
+        Dimension::Three
+    }
+
+    /// The amplitude for scattering from the unit propagation direction `incoming` to
+    /// `outgoing`; the estimators call this. In 3D it is `amplitude(incoming . outgoing)`; in
+    /// flatland it uses the signed angle, so asymmetric tables are honoured.
+    fn amplitude_between(&self, incoming: DVec3, outgoing: DVec3) -> Complex64 {
+        self.amplitude(incoming.dot(outgoing))
+    }
 }
 
 /// Isotropic scattering: `s = 1 / sqrt(4 pi)`, `rho = 1 / (4 pi)`.
@@ -98,12 +118,39 @@ pub enum Phase {
     HenyeyGreenstein(HenyeyGreenstein),
     /// A tabulated complex amplitude (the way Mie and measured data enter).
     Tabulated(Arc<TabulatedAmplitude>),
+    /// Isotropic flatland scattering.
+    FlatIsotropic,
+    /// Flatland Henyey-Greenstein (wrapped Cauchy).
+    FlatHenyeyGreenstein(FlatHenyeyGreenstein),
+    /// A flatland complex amplitude tabulated over `[0, 2 pi]`.
+    FlatTabulated(Arc<FlatTabulatedAmplitude>),
 }
 
 impl Phase {
     /// Henyey-Greenstein with anisotropy `g`, `|g| < 1`.
     pub fn hg(g: f64) -> Result<Self, PhaseError> {
         Ok(Self::HenyeyGreenstein(HenyeyGreenstein::new(g)?))
+    }
+
+    /// Flatland Henyey-Greenstein with anisotropy `g`, `|g| < 1`.
+    pub fn flat_hg(g: f64) -> Result<Self, PhaseError> {
+        Ok(Self::FlatHenyeyGreenstein(FlatHenyeyGreenstein::new(g)?))
+    }
+
+    /// The isotropic function of a dimension.
+    pub fn isotropic(dimension: Dimension) -> Self {
+        match dimension {
+            Dimension::Three => Self::Isotropic,
+            Dimension::Two => Self::FlatIsotropic,
+        }
+    }
+
+    /// Henyey-Greenstein with anisotropy `g` in a dimension.
+    pub fn hg_in(dimension: Dimension, g: f64) -> Result<Self, PhaseError> {
+        match dimension {
+            Dimension::Three => Self::hg(g),
+            Dimension::Two => Self::flat_hg(g),
+        }
     }
 }
 
@@ -116,6 +163,15 @@ macro_rules! dispatch {
             }
             Phase::HenyeyGreenstein($p) => $e,
             Phase::Tabulated($p) => {
+                let $p = &**$p;
+                $e
+            }
+            Phase::FlatIsotropic => {
+                let $p = &FlatIsotropic;
+                $e
+            }
+            Phase::FlatHenyeyGreenstein($p) => $e,
+            Phase::FlatTabulated($p) => {
                 let $p = &**$p;
                 $e
             }
@@ -138,6 +194,21 @@ impl PhaseFunction for Phase {
     }
     fn mean_cosine(&self) -> f64 {
         dispatch!(self, p => p.mean_cosine())
+    }
+    #[inline]
+    fn sample_direction(&self, incoming: DVec3, u: [f64; 2]) -> DVec3 {
+        dispatch!(self, p => p.sample_direction(incoming, u))
+    }
+    #[inline]
+    fn pdf_direction(&self, incoming: DVec3, outgoing: DVec3) -> f64 {
+        dispatch!(self, p => p.pdf_direction(incoming, outgoing))
+    }
+    fn dimension(&self) -> Dimension {
+        dispatch!(self, p => p.dimension())
+    }
+    #[inline]
+    fn amplitude_between(&self, incoming: DVec3, outgoing: DVec3) -> Complex64 {
+        dispatch!(self, p => p.amplitude_between(incoming, outgoing))
     }
 }
 
