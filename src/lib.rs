@@ -9,7 +9,9 @@
 //! - [`medium`]: bulk media and their geometry;
 //! - [`phase`]: phase and scattering-amplitude functions;
 //! - [`paths`]: counter-based random streams and volumetric sub-path sampling;
-//! - [`estimators`]: speckle mean, covariance and field estimators.
+//! - [`estimators`]: speckle mean, covariance and field estimators;
+//! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
+//!   scatterers, averaged over random configurations).
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -18,3 +20,4 @@ pub use speckle_estimators as estimators;
 pub use speckle_medium as medium;
 pub use speckle_paths as paths;
 pub use speckle_phase as phase;
+pub use speckle_wave as wave;

@@ -7,11 +7,12 @@
 
 mod common_b;
 
-use common_b::{complex_mean_se, mean_se, tilted};
+use common_b::{mean_se, tilted};
 use num_complex::Complex64;
 use speckle::estimators::{
     CMatrix, Coherence, CovarianceEstimate, CovarianceOptions, FieldEstimate, FieldOptions,
-    NoProgress, Pair, Scene, Sensor, Source, render_covariance, render_fields, speckle_means,
+    NoProgress, Pair, Scene, Sensor, Source, empirical_moments, render_covariance, render_fields,
+    speckle_means,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::paths::TracerConfig;
@@ -101,20 +102,11 @@ fn column(f: &CMatrix, j: usize) -> Vec<Complex64> {
     (0..f.rows()).map(|r| f.get(r, j)).collect()
 }
 
-/// Empirical second moment `(1/R) sum_r u_ri u_rj^*` of zero-mean fields (the mean is known to
-/// be zero, `add_mean` off, so this is the unbiased covariance estimate) and the SEs of its real
-/// and imaginary parts from the sample variance of the products.
-fn empirical_covariance(f: &CMatrix, i: usize, j: usize) -> (Complex64, Complex64) {
-    let prod: Vec<Complex64> = (0..f.rows())
-        .map(|r| f.get(r, i) * f.get(r, j).conj())
-        .collect();
-    complex_mean_se(&prod)
-}
-
 /// Every entry of the empirical covariance of `R = 8000` fields (`N = 500` sub-paths each)
 /// matches the covariance render (1 M paths): for the real and imaginary part of each of the 36
-/// entries `i <= j`, `|C_emp - C_render| < 4 sqrt(SE_emp^2 + SE_render^2)`. `SE_emp` is the
-/// sample standard deviation of `u_i u_j^*` over `sqrt(R)` (about 1.1% of the diagonal),
+/// entries `i <= j`, `|C_emp - C_render| < 4 sqrt(SE_emp^2 + SE_render^2)`. `C_emp` is the
+/// unbiased sample covariance of [`empirical_moments`], `SE_emp` the sample standard deviation
+/// of the centred products `(u_i - m_i)(u_j - m_j)^*` over `sqrt(R)` (about 1.1% of the diagonal),
 /// `SE_render` the library's batch-means SE (about 0.1%). With 72 statistics a 4-sigma bound
 /// has a family-wise false alarm rate below 0.5%; the seeds are fixed. Halving the
 /// single-scattering weight (the `sqrt(V/2)` of the paper's Alg. 2) would move the diagonal by
@@ -159,6 +151,7 @@ fn empirical_field_covariance_matches_the_covariance_render_heavy() {
 
 fn compare_covariances(j: usize, cov: &CovarianceEstimate, fields: &FieldEstimate) {
     let c = &cov.total;
+    let moments = empirical_moments(&fields.fields).unwrap();
     let mut max_z: f64 = 0.0;
     for a in 0..j {
         let single = cov.single.value.get(a, a).re / c.value.get(a, a).re;
@@ -170,12 +163,12 @@ fn compare_covariances(j: usize, cov: &CovarianceEstimate, fields: &FieldEstimat
     }
     for a in 0..j {
         for b in a..j {
-            let (emp, se) = empirical_covariance(&fields.fields, a, b);
+            let (emp, se) = moments.covariance.get(a, b);
             let (val, rse) = c.get(a, b);
             let zr = (emp.re - val.re) / se.re.hypot(rse.re);
             let zi = if a == b {
-                // The diagonal is real in both (up to rounding in the complex products).
-                assert!(emp.im.abs() <= 1e-12 * emp.re && val.im.abs() <= 1e-12 * val.re);
+                // The diagonal is real in both (up to rounding in the render's complex products).
+                assert!(emp.im == 0.0 && val.im.abs() <= 1e-12 * val.re);
                 0.0
             } else {
                 (emp.im - val.im) / se.im.hypot(rse.im)
@@ -259,9 +252,9 @@ fn intensity_covariance_of_fields_is_siegert() {
 /// - `FieldEstimate::mean` is `speckle_means(scene)` exactly;
 /// - with the same seed, fields with the mean minus fields without it equal the mean to 1e-12
 ///   (the fluctuations do not depend on `add_mean`);
-/// - the empirical mean of the `R = 2000` realizations matches the speckle mean within 4 SEs
-///   (sample SD over `sqrt(R)`) in real and imaginary part, while being more than 10 SEs from 0,
-///   so an omitted mean would fail.
+/// - the empirical mean of the `R = 2000` realizations ([`empirical_moments`]) matches the
+///   speckle mean within 4 SEs (sample SD over `sqrt(R)`) in real and imaginary part, while
+///   being more than 10 SEs from 0, so an omitted mean would fail.
 #[test]
 fn field_mean_is_added_when_asked() {
     let slab = Aabb::centered(DVec3::ZERO, DVec3::new(6.0, 6.0, 1.0)).unwrap();
@@ -298,12 +291,13 @@ fn field_mean_is_added_when_asked() {
     assert_eq!(with.mean, m);
     assert!(without.mean.iter().all(|z| *z == Complex64::new(0.0, 0.0)));
     assert_eq!(m.len(), scene.len());
+    let moments = empirical_moments(&with.fields).unwrap();
     for (j, &mj) in m.iter().enumerate() {
         for r in 0..with.fields.rows() {
             let d = with.fields.get(r, j) - without.fields.get(r, j) - mj;
             assert!(d.norm() <= 1e-12 * mj.norm(), "row {r} pair {j}: {d}");
         }
-        let (emp, se) = complex_mean_se(&column(&with.fields, j));
+        let (emp, se) = (moments.mean[j], moments.mean_std_error[j]);
         let z = Complex64::new((emp.re - mj.re) / se.re, (emp.im - mj.im) / se.im);
         let z0 = emp.norm() / se.re.hypot(se.im);
         eprintln!(

@@ -2,12 +2,16 @@
 //!
 //! All estimates are in the absolute units of `notes/conventions.md`: a plane wave has unit
 //! amplitude, a point source is `e^{ikr}/r`, a far-field sensor reports the scattering amplitude
-//! `A(v)` of `u(R v) = A(v) e^{ikR}/R`, a point sensor the field value.
+//! `A(v)` of `u(R v) = A(v) e^{ikR}/R`, a point sensor the field value. In flatland (a medium in
+//! an [`speckle_medium::Aabb::flat`] rectangle with a flatland phase function) the same code runs
+//! with `1/sqrt(r)` in place of `1/r`, amplitudes normalised on the circle and uniform first
+//! directions of density `1/(2 pi)`.
 //!
 //! - [`speckle_mean`]: the mean field (Eq. 20 and its far-field form), in closed form.
 //! - [`render_covariance`]: the covariance of all pairs of a list of (source, sensor) pairs
 //!   (Alg. 1), with forward and reversed paths (coherent backscattering) or forward paths only,
 //!   split into single- and multiple-scattering parts, each with standard errors.
+//! - [`render_intensity`]: the diagonal of the covariance alone (intensities of many sensors).
 //! - [`render_single_scattering`]: the single-scattering covariance of Eq. 41 alone, without
 //!   path tracing.
 //! - [`render_fields`]: realizations of the field vector (Alg. 2) whose covariance is the above.
@@ -40,6 +44,7 @@
 mod connect;
 mod covariance;
 mod driver;
+mod empirical;
 mod endpoints;
 mod fields;
 mod matrix;
@@ -48,9 +53,11 @@ mod moments;
 mod scene;
 
 pub use covariance::{
-    CovarianceEstimate, CovarianceOptions, render_covariance, render_single_scattering,
+    CovarianceEstimate, CovarianceOptions, render_covariance, render_intensity,
+    render_single_scattering,
 };
 pub use driver::{NoProgress, Progress};
+pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use endpoints::{Leg, Pair, Sensor, Source};
 pub use fields::{FieldEstimate, FieldOptions, render_fields};
 pub use matrix::{CMatrix, MatrixEstimate};

@@ -3,14 +3,48 @@
 use crate::{CMatrix, MatrixEstimate};
 use num_complex::Complex64;
 
-/// Sums of batch sums and of their squares, per entry of the upper triangle of a `J x J`
-/// Hermitian matrix (stored in full, lower triangle unused until [`Moments::finish`]).
+/// Which entries of the `J x J` Hermitian matrix `sum w a a^H` are accumulated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Layout {
+    /// The upper triangle, stored in a full row-major `J x J` buffer.
+    Full,
+    /// The diagonal only (intensities), stored as a `J` vector.
+    Diagonal,
+}
+
+impl Layout {
+    /// Length of the accumulation buffer.
+    pub fn len(self, j: usize) -> usize {
+        match self {
+            Self::Full => j * j,
+            Self::Diagonal => j,
+        }
+    }
+
+    /// Adds `weight * a a^H` (its stored entries) to `m`; `conj` is scratch of length `J`.
+    #[inline]
+    pub fn accumulate(self, m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64], w: f64) {
+        match self {
+            Self::Full => rank1_upper(m, a, conj, w),
+            Self::Diagonal => {
+                for (s, x) in m.iter_mut().zip(a) {
+                    s.re += w * x.norm_sqr();
+                }
+            }
+        }
+    }
+}
+
+/// Sums of batch sums and of their squares, per stored entry of a [`Layout`]: the upper triangle
+/// of a `J x J` Hermitian matrix (stored in full, lower triangle unused until
+/// [`Moments::finish`]) or its diagonal.
 ///
 /// With batch sums `S_b` of `n_b` paths, the per-path variance is estimated as
 /// `(sum_b S_b^2 / n_b - N mean^2) / (B - 1)` (each batch sum has variance `n_b sigma^2`), for the
 /// real and imaginary parts separately, and the standard error of the mean is `sigma / sqrt(N)`.
 #[derive(Debug, Clone)]
 pub(crate) struct Moments {
+    layout: Layout,
     j: usize,
     sum: Vec<Complex64>,
     sq_re: Vec<f64>,
@@ -20,39 +54,46 @@ pub(crate) struct Moments {
 }
 
 impl Moments {
-    pub fn new(j: usize) -> Self {
+    pub fn new(layout: Layout, j: usize) -> Self {
+        let len = layout.len(j);
         Self {
+            layout,
             j,
-            sum: vec![Complex64::new(0.0, 0.0); j * j],
-            sq_re: vec![0.0; j * j],
-            sq_im: vec![0.0; j * j],
+            sum: vec![Complex64::new(0.0, 0.0); len],
+            sq_re: vec![0.0; len],
+            sq_im: vec![0.0; len],
             paths: 0,
             batches: 0,
         }
     }
 
-    /// Adds one batch whose upper-triangle sum is `f(index)`, over `n` paths.
+    /// Adds one batch whose sum at stored index `idx` is `f(idx)`, over `n` paths.
     pub fn add_batch(&mut self, n: u64, f: impl Fn(usize) -> Complex64) {
         let inv = 1.0 / n as f64;
-        for r in 0..self.j {
-            for idx in r * self.j + r..(r + 1) * self.j {
-                let s = f(idx);
-                self.sum[idx] += s;
-                self.sq_re[idx] += s.re * s.re * inv;
-                self.sq_im[idx] += s.im * s.im * inv;
+        let mut add = |idx: usize| {
+            let s = f(idx);
+            self.sum[idx] += s;
+            self.sq_re[idx] += s.re * s.re * inv;
+            self.sq_im[idx] += s.im * s.im * inv;
+        };
+        match self.layout {
+            Layout::Full => {
+                for r in 0..self.j {
+                    (r * self.j + r..(r + 1) * self.j).for_each(&mut add);
+                }
             }
+            Layout::Diagonal => (0..self.j).for_each(add),
         }
         self.paths += n;
         self.batches += 1;
     }
 
-    /// The Hermitian estimate with standard errors; infinite standard errors with one batch.
+    /// The estimate with standard errors (infinite with one batch): the Hermitian `J x J`
+    /// matrix, or for [`Layout::Diagonal`] its real diagonal as a `J x 1` column.
     pub fn finish(self) -> MatrixEstimate {
         let j = self.j;
         let n = self.paths as f64;
         let dof = self.batches.saturating_sub(1) as f64;
-        let mut value = CMatrix::zeros(j, j);
-        let mut se = CMatrix::zeros(j, j);
         let se_of = |sq: f64, mean: f64| {
             if dof == 0.0 {
                 f64::INFINITY
@@ -60,6 +101,17 @@ impl Moments {
                 ((sq - n * mean * mean).max(0.0) / dof / n).sqrt()
             }
         };
+        if self.layout == Layout::Diagonal {
+            let value = self.sum.iter().map(|s| Complex64::new(s.re / n, 0.0));
+            let se = (0..j).map(|i| Complex64::new(se_of(self.sq_re[i], self.sum[i].re / n), 0.0));
+            return MatrixEstimate {
+                value: CMatrix::from_vec(j, 1, value.collect()),
+                std_error: CMatrix::from_vec(j, 1, se.collect()),
+                samples: self.paths,
+            };
+        }
+        let mut value = CMatrix::zeros(j, j);
+        let mut se = CMatrix::zeros(j, j);
         for r in 0..j {
             for c in r..j {
                 let idx = r * j + c;

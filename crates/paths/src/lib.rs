@@ -48,7 +48,9 @@ pub enum PathError {
     #[error("max_vertices must be >= 1")]
     InvalidMaxVertices,
     /// The medium and the phase function live in different dimensions.
-    #[error("the medium is {medium} but the phase function is {phase}; use a flatland phase function with a flatland medium")]
+    #[error(
+        "the medium is {medium} but the phase function is {phase}; use a flatland phase function with a flatland medium"
+    )]
     DimensionMismatch {
         /// The medium's dimension.
         medium: speckle_phase::Dimension,

@@ -216,7 +216,8 @@ mod tests {
         // A 3D phase function in a flatland medium, and the reverse, are refused.
         let e = Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap_err();
         assert!(matches!(e, PathError::DimensionMismatch { .. }), "{e}");
-        let m3 = HomogeneousBox::new(Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap(), 1.0, 0.0).unwrap();
+        let m3 =
+            HomogeneousBox::new(Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap(), 1.0, 0.0).unwrap();
         assert!(Tracer::new(&m3, &Phase::FlatIsotropic, TracerConfig::default()).is_err());
         // Out-of-plane strategy directions are refused.
         let cfg = TracerConfig {

@@ -20,6 +20,7 @@ mod dimension;
 mod flat;
 mod hg;
 mod linear;
+mod mie;
 mod sphere;
 mod tabulated;
 
@@ -28,6 +29,10 @@ pub use flat::{
     FlatHenyeyGreenstein, FlatIsotropic, FlatTabulatedAmplitude, rotate_in_plane, signed_angle,
 };
 pub use hg::HenyeyGreenstein;
+pub use mie::{
+    MIE_MAX_INDEX_MODULUS, MIE_MAX_SIZE_PARAMETER, MIE_MAX_TABLE_ANGLES, MIE_MIN_SIZE_PARAMETER,
+    MieSphere,
+};
 pub use num_complex::Complex64;
 pub use sphere::{UNIFORM_SPHERE_PDF, orthonormal_basis, uniform_sphere};
 pub use tabulated::TabulatedAmplitude;
@@ -45,6 +50,9 @@ pub enum PhaseError {
     /// A tabulated amplitude function is malformed.
     #[error("tabulated amplitude: {0}")]
     InvalidTable(String),
+    /// A Mie sphere has an invalid parameter (the message names it).
+    #[error("Mie sphere: {0}")]
+    InvalidMie(String),
 }
 
 /// A normalised phase function with its complex scattering amplitude.

@@ -1,0 +1,137 @@
+//! Statistics over independent scatterer configurations.
+
+use crate::solve::{check_scene, expected_scatterers, sample_scatterers, solve_checked};
+use crate::{WaveError, WaveScene};
+use num_complex::Complex64;
+use rayon::prelude::*;
+use speckle_estimators::{CMatrix, MatrixEstimate, Progress, empirical_moments};
+use speckle_paths::PathRng;
+
+/// Options of [`render_wave`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WaveOptions {
+    /// Number `R >= 2` of independent scatterer configurations.
+    pub configurations: usize,
+    /// Seed; configuration `r` draws from the stream `PathRng::new(seed, r)`.
+    pub seed: u64,
+}
+
+/// The exact fields of `R` configurations and their statistics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaveEstimate {
+    /// Fields, one configuration per row (`R x J`, pairs in scene order), as in
+    /// [`speckle_estimators::FieldEstimate::fields`].
+    pub fields: CMatrix,
+    /// Sample mean of the fields over configurations (estimates the speckle mean).
+    pub mean: Vec<Complex64>,
+    /// Standard errors of the mean: real part = SE of `Re`, imaginary part = SE of `Im`.
+    pub mean_std_error: Vec<Complex64>,
+    /// Unbiased sample covariance `E[u u^H] - E[u] E[u]^H` (`J x J`) with per-entry standard
+    /// errors ([`empirical_moments`]).
+    pub covariance: MatrixEstimate,
+    /// Number of configurations `R`.
+    pub configurations: u64,
+    /// Number of scatterers in each configuration.
+    pub scatterer_counts: Vec<usize>,
+    /// Mean number of scatterers per configuration.
+    pub mean_scatterers: f64,
+    /// Expected number of scatterers, `n |V|`.
+    pub expected_scatterers: f64,
+}
+
+/// The fields of one configuration and its number of scatterers.
+type Solved = Result<(Vec<Complex64>, usize), WaveError>;
+
+/// Memory the Foldy-Lax matrices of configurations solved at the same time may take.
+const MEMORY_BUDGET: f64 = 4.0 * (1u64 << 30) as f64;
+
+/// Solves `R` independent configurations of `scene` exactly and returns their fields with
+/// their empirical mean and covariance.
+///
+/// Configuration `r` draws its scatterers ([`crate::sample_scatterers`]) from the
+/// counter-based stream `PathRng::new(seed, r)` and is solved sequentially
+/// ([`crate::solve`]); configurations run in parallel on the rayon pool, in chunks small enough
+/// that their matrices fit in 4 GiB, and are collected in configuration order. So the result
+/// is bitwise the same for any number of threads. `progress` advances by one per configuration
+/// and is asked for cancellation before each.
+///
+/// Errors name the offending input: `configurations` (fewer than 2), `medium.sigma_a`,
+/// `phase`, `medium` (too many scatterers), or [`WaveError::Cancelled`].
+///
+/// ```
+/// use speckle_estimators::{NoProgress, Pair, Scene, Sensor, Source};
+/// use glam::DVec2;
+/// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
+/// use speckle_paths::TracerConfig;
+/// use speckle_phase::Phase;
+/// use speckle_wave::{WaveOptions, render_wave};
+/// // A flatland slab, 10 x 4 wavelengths, mean free path 4: about 16 scatterers.
+/// let b = Aabb::flat(DVec2::new(-5.0, -2.0), DVec2::new(5.0, 2.0)).unwrap();
+/// let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
+/// let scene = Scene::new(m, Phase::FlatIsotropic, 1.0,
+///     vec![Source::plane_wave(DVec3::Y).unwrap()],
+///     vec![Sensor::Point { position: DVec3::new(0.0, 3.0, 0.0) }], Pair::all(1, 1),
+///     TracerConfig::default()).unwrap();
+/// let w = render_wave(&scene, &WaveOptions { configurations: 50, seed: 1 }, &NoProgress).unwrap();
+/// assert_eq!(w.fields.rows(), 50);
+/// assert!(w.covariance.value.get(0, 0).re > 0.0);
+/// ```
+pub fn render_wave(
+    scene: &WaveScene,
+    options: &WaveOptions,
+    progress: &dyn Progress,
+) -> Result<WaveEstimate, WaveError> {
+    let kernel = check_scene(scene)?;
+    let expected = expected_scatterers(scene)?;
+    let r = options.configurations;
+    if r < 2 {
+        return Err(WaveError::InvalidInput {
+            field: "configurations".into(),
+            reason: format!("at least 2 configurations are needed for a covariance (got {r})"),
+        });
+    }
+    let j = scene.len();
+    // A generous bound on the matrix size of one configuration (mean + 5 standard deviations).
+    let n_high = expected + 5.0 * expected.sqrt() + 1.0;
+    let by_memory = (MEMORY_BUDGET / (16.0 * n_high * n_high)).floor().max(1.0) as usize;
+    let chunk = (4 * rayon::current_num_threads()).min(by_memory).max(1);
+
+    let mut fields = CMatrix::zeros(r, j);
+    let mut counts = Vec::with_capacity(r);
+    let mut start = 0;
+    while start < r {
+        let end = (start + chunk).min(r);
+        // Per configuration: None when cancelled, else its fields and scatterer count.
+        let results: Vec<Option<Solved>> = (start..end)
+            .into_par_iter()
+            .map(|c| {
+                if progress.cancelled() {
+                    return None;
+                }
+                let solved = sample_scatterers(scene, &mut PathRng::new(options.seed, c as u64))
+                    .and_then(|o| Ok((solve_checked(scene, kernel, &o)?, o.len())));
+                progress.advance(1);
+                Some(solved)
+            })
+            .collect();
+        for (offset, result) in results.into_iter().enumerate() {
+            let (u, n) = result.ok_or(WaveError::Cancelled)??;
+            let row = start + offset;
+            fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
+            counts.push(n);
+        }
+        start = end;
+    }
+    let moments = empirical_moments(&fields)?;
+    let mean_scatterers = counts.iter().sum::<usize>() as f64 / r as f64;
+    Ok(WaveEstimate {
+        fields,
+        mean: moments.mean,
+        mean_std_error: moments.mean_std_error,
+        covariance: moments.covariance,
+        configurations: r as u64,
+        scatterer_counts: counts,
+        mean_scatterers,
+        expected_scatterers: expected,
+    })
+}

@@ -1,0 +1,382 @@
+//! One configuration: Poisson-distributed scatterers and the dense Foldy-Lax solve.
+
+use crate::{Kernel, WaveError};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::lu::partial_pivoting::{factor, solve as lu_solve};
+use faer::{Mat, Par};
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_estimators::{Scene, Sensor, Source};
+use speckle_medium::{Dimension, HomogeneousBox, Medium};
+use speckle_paths::PathRng;
+use speckle_phase::Phase;
+
+/// The scenes the wave solver accepts: a homogeneous lossless box of isotropic scatterers.
+pub type WaveScene = Scene<HomogeneousBox, Phase>;
+
+/// Largest expected number of scatterers `n |V|` a scene may have. The dense solve costs
+/// `O(N^3)` time (`(8/3) N^3` real flops for the complex LU) and
+/// `16 N^2` bytes: 6.4 GB at this limit.
+pub const MAX_EXPECTED_SCATTERERS: f64 = 20_000.0;
+
+/// Largest number of explicit scatterers [`solve`] accepts (a Poisson draw may exceed the
+/// expected number a little).
+pub const MAX_SCATTERERS: usize = 25_000;
+
+fn invalid(field: impl Into<String>, reason: impl Into<String>) -> WaveError {
+    WaveError::InvalidInput {
+        field: field.into(),
+        reason: reason.into(),
+    }
+}
+
+/// Checks that the scene is one the solver models (lossless medium, isotropic scatterers of
+/// the medium's dimension) and returns its kernel.
+pub fn check_scene(scene: &WaveScene) -> Result<Kernel, WaveError> {
+    let m = scene.medium();
+    if m.absorption() != 0.0 {
+        return Err(invalid(
+            "medium.sigma_a",
+            format!(
+                "must be 0 (got {}): the wave solver models lossless scatterers, whose \
+                 extinction is all scattering",
+                m.absorption()
+            ),
+        ));
+    }
+    let dimension = m.dimension();
+    if *scene.phase() != Phase::isotropic(dimension) {
+        return Err(invalid(
+            "phase",
+            format!(
+                "the wave solver models isotropic point scatterers: the phase function must be \
+                 isotropic in {dimension} (got {:?})",
+                scene.phase()
+            ),
+        ));
+    }
+    Ok(Kernel::new(dimension, scene.wavenumber()))
+}
+
+/// The number density of scatterers `n = sigma_s / c_s` (per volume in 3D, per area in
+/// flatland), with `c_s` the cross-section of [`Kernel::cross_section`].
+pub fn number_density(scene: &WaveScene) -> Result<f64, WaveError> {
+    Ok(scene.medium().scattering() / check_scene(scene)?.cross_section())
+}
+
+/// The expected number of scatterers in the medium, `n |V|` (`|V|` the volume, or the area in
+/// flatland); an error naming `medium` when it exceeds [`MAX_EXPECTED_SCATTERERS`].
+///
+/// ```
+/// use speckle_estimators::{Pair, Scene, Sensor, Source};
+/// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
+/// use speckle_paths::TracerConfig;
+/// use speckle_phase::Phase;
+/// // 10 x 10 x 5 wavelengths, mean free path 10: n = sigma_s / (4 pi / k^2) = 0.1 pi per
+/// // cubic wavelength.
+/// let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 5.0)).unwrap();
+/// let m = HomogeneousBox::from_mean_free_path(b, 10.0, 1.0).unwrap();
+/// let scene = Scene::new(m, Phase::Isotropic, 1.0, vec![Source::plane_wave(DVec3::Z).unwrap()],
+///     vec![Sensor::far_field(DVec3::Z).unwrap()], Pair::all(1, 1), TracerConfig::default())
+///     .unwrap();
+/// let n = speckle_wave::expected_scatterers(&scene).unwrap();
+/// assert!((n - 50.0 * std::f64::consts::PI).abs() < 1e-9);
+/// ```
+pub fn expected_scatterers(scene: &WaveScene) -> Result<f64, WaveError> {
+    let expected = number_density(scene)? * scene.medium().bounds().measure();
+    if expected.is_nan() || expected > MAX_EXPECTED_SCATTERERS {
+        return Err(invalid(
+            "medium",
+            format!(
+                "the box holds {expected:.0} scatterers on average (sigma_s |V| / c_s), more \
+                 than the dense solver's limit of {MAX_EXPECTED_SCATTERERS}: its cost grows as \
+                 N^3 and its memory as 16 N^2 bytes; use a smaller box or a longer mean free \
+                 path"
+            ),
+        ));
+    }
+    Ok(expected)
+}
+
+/// Draws one configuration: a Poisson number of scatterers with mean
+/// [`expected_scatterers`], each uniform in the medium's box (`z = 0` in flatland).
+///
+/// The count is the number of arrivals of a unit-rate Poisson process in `[0, n |V|]`
+/// (exponential spacings `-ln(1 - u)`), then three uniforms place each scatterer. Positions are
+/// independent, so pairs of scatterers may come arbitrarily close (point scatterers allow it:
+/// the Foldy-Lax matrix of a close pair stays regular).
+pub fn sample_scatterers(scene: &WaveScene, rng: &mut PathRng) -> Result<Vec<DVec3>, WaveError> {
+    let expected = expected_scatterers(scene)?;
+    let mut count = 0usize;
+    let mut t = -(1.0 - rng.next_f64()).ln();
+    while t <= expected {
+        count += 1;
+        t -= (1.0 - rng.next_f64()).ln();
+    }
+    let m = scene.medium();
+    Ok((0..count)
+        .map(|_| m.sample_scatterer(rng.next_3()))
+        .collect())
+}
+
+fn check_positions(scene: &WaveScene, scatterers: &[DVec3]) -> Result<(), WaveError> {
+    if scatterers.len() > MAX_SCATTERERS {
+        return Err(invalid(
+            "scatterers",
+            format!(
+                "{} scatterers exceed the dense solver's limit of {MAX_SCATTERERS}",
+                scatterers.len()
+            ),
+        ));
+    }
+    let flat = scene.medium().dimension() == Dimension::Two;
+    for (n, o) in scatterers.iter().enumerate() {
+        if !o.is_finite() {
+            return Err(invalid(
+                format!("scatterers[{n}]"),
+                format!("position {o} must be finite"),
+            ));
+        }
+        if flat && o.z != 0.0 {
+            return Err(invalid(
+                format!("scatterers[{n}]"),
+                format!("position {o} must have z = 0 in a flatland scene"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The fields of all pairs of `scene` (in pair order) for scatterers at the given positions:
+/// the exact solution of the Foldy-Lax equations (see the crate docs).
+///
+/// Errors name the offending input: the scene (`medium.sigma_a`, `phase`), a position
+/// (`scatterers[n]`: non-finite, off the plane in flatland, coinciding with another scatterer,
+/// a point source or a point sensor), or a pair whose point source and point sensor coincide
+/// (`pairs[j]`).
+///
+/// ```
+/// use speckle_estimators::{Pair, Scene, Sensor, Source};
+/// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
+/// use speckle_paths::TracerConfig;
+/// use speckle_phase::Phase;
+/// let b = Aabb::centered(DVec3::ZERO, DVec3::splat(2.0)).unwrap();
+/// let m = HomogeneousBox::from_mean_free_path(b, 10.0, 1.0).unwrap();
+/// let v = DVec3::new(0.0, 0.6, 0.8);
+/// let scene = Scene::new(m, Phase::Isotropic, 1.0, vec![Source::plane_wave(DVec3::Z).unwrap()],
+///     vec![Sensor::far_field(v).unwrap()], Pair::all(1, 1), TracerConfig::default()).unwrap();
+/// // One scatterer at o: A(v) = (i / k) e^{ik (i - v).o}.
+/// let o = DVec3::new(0.1, -0.3, 0.2);
+/// let u = speckle_wave::solve(&scene, &[o]).unwrap();
+/// let k = scene.wavenumber();
+/// let expect = num_complex::Complex64::new(0.0, 1.0 / k)
+///     * num_complex::Complex64::from_polar(1.0, k * (DVec3::Z - v).dot(o));
+/// assert!((u[0] - expect).norm() < 1e-15);
+/// ```
+pub fn solve(scene: &WaveScene, scatterers: &[DVec3]) -> Result<Vec<Complex64>, WaveError> {
+    let kernel = check_scene(scene)?;
+    check_positions(scene, scatterers)?;
+    solve_checked(scene, kernel, scatterers)
+}
+
+/// [`solve`] after the checks of the scene and of the positions' values.
+pub(crate) fn solve_checked(
+    scene: &WaveScene,
+    kernel: Kernel,
+    scatterers: &[DVec3],
+) -> Result<Vec<Complex64>, WaveError> {
+    let n = scatterers.len();
+    let k = kernel.wavenumber();
+    let tau = kernel.t_matrix();
+    let sources = scene.sources();
+    for (s, source) in sources.iter().enumerate() {
+        if let Source::Point { position } = *source {
+            if let Some(at) = scatterers.iter().position(|o| *o == position) {
+                return Err(invalid(
+                    format!("scatterers[{at}]"),
+                    format!("coincides with the point source {s} at {position}"),
+                ));
+            }
+        }
+    }
+
+    // Exciting fields psi (N x S, one column per source): (I - tau G_offdiag) psi = u_inc.
+    let mut psi = Mat::<Complex64>::from_fn(n, sources.len(), |i, s| {
+        incident(&kernel, &sources[s], scatterers[i])
+    });
+    if n > 0 {
+        let mut a = Mat::<Complex64>::identity(n, n);
+        for j in 0..n {
+            for i in (j + 1)..n {
+                let r = (scatterers[i] - scatterers[j]).length();
+                if r == 0.0 {
+                    return Err(invalid(
+                        format!("scatterers[{i}]"),
+                        format!("coincides with scatterers[{j}] at {}", scatterers[i]),
+                    ));
+                }
+                let v = -tau * kernel.green(r);
+                a[(i, j)] = v;
+                a[(j, i)] = v;
+            }
+        }
+        lu_solve_in_place(a, psi.as_mut());
+        if let Some((i, s)) = (0..n)
+            .flat_map(|i| (0..sources.len()).map(move |s| (i, s)))
+            .find(|&(i, s)| !psi[(i, s)].is_finite())
+        {
+            return Err(invalid(
+                "scatterers",
+                format!(
+                    "the Foldy-Lax system is singular for this configuration (non-finite \
+                     exciting field at scatterer {i} for source {s})"
+                ),
+            ));
+        }
+    }
+
+    // Pairs grouped by sensor, so that each sensor's weights are formed once.
+    let mut by_sensor = vec![Vec::new(); scene.sensors().len()];
+    for (j, p) in scene.pairs().iter().enumerate() {
+        by_sensor[p.sensor].push(j);
+    }
+    let mut fields = vec![Complex64::new(0.0, 0.0); scene.len()];
+    let mut weights = vec![Complex64::new(0.0, 0.0); n];
+    let far = kernel.scattering_amplitude();
+    for (v, pairs) in by_sensor.iter().enumerate() {
+        if pairs.is_empty() {
+            continue;
+        }
+        let sensor = scene.sensors()[v];
+        // u_scat(sensor) = sum_n w_n psi_n.
+        for (w, o) in weights.iter_mut().zip(scatterers) {
+            *w = match sensor {
+                // A(v) = sum_n f e^{-ik v.o_n} psi_n (f = tau g, the far-field factor).
+                Sensor::FarField { direction } => {
+                    far * Complex64::from_polar(1.0, -k * direction.dot(*o))
+                }
+                // u(q) = u_inc(q) + sum_n tau G(q - o_n) psi_n.
+                Sensor::Point { position } => {
+                    let r = (position - *o).length();
+                    if r == 0.0 {
+                        let at = scatterers.iter().position(|x| x == o).unwrap_or_default();
+                        return Err(invalid(
+                            format!("scatterers[{at}]"),
+                            format!("coincides with the point sensor {v} at {position}"),
+                        ));
+                    }
+                    tau * kernel.green(r)
+                }
+            };
+        }
+        for &j in pairs {
+            let s = scene.pairs()[j].source;
+            let column = psi.col_as_slice(s);
+            let scattered: Complex64 = weights.iter().zip(column).map(|(w, p)| w * p).sum();
+            fields[j] = scattered + direct(&kernel, j, &sources[s], &sensor)?;
+        }
+    }
+    Ok(fields)
+}
+
+/// The incident field of a source at `x`.
+#[inline]
+fn incident(kernel: &Kernel, source: &Source, x: DVec3) -> Complex64 {
+    match *source {
+        Source::PlaneWave { direction } => {
+            Complex64::from_polar(1.0, kernel.wavenumber() * direction.dot(x))
+        }
+        Source::Point { position } => kernel.point_source((x - position).length()),
+    }
+}
+
+/// The incident field's own contribution to a sensor: its value at a point sensor, its
+/// far-field amplitude `e^{-ik v.p}` for a point source and a far-field sensor, none for a
+/// plane wave and a far-field sensor.
+fn direct(
+    kernel: &Kernel,
+    j: usize,
+    source: &Source,
+    sensor: &Sensor,
+) -> Result<Complex64, WaveError> {
+    Ok(match (*source, *sensor) {
+        (_, Sensor::Point { position }) => {
+            if let Source::Point { position: p } = *source {
+                if p == position {
+                    return Err(invalid(
+                        format!("pairs[{j}]"),
+                        format!("the point source and the point sensor coincide at {p}"),
+                    ));
+                }
+            }
+            incident(kernel, source, position)
+        }
+        (Source::Point { position }, Sensor::FarField { direction }) => {
+            Complex64::from_polar(1.0, -kernel.wavenumber() * direction.dot(position))
+        }
+        (Source::PlaneWave { .. }, Sensor::FarField { .. }) => Complex64::new(0.0, 0.0),
+    })
+}
+
+/// Solves `A X = B` in place of `B` with one LU factorisation of `A` (partial pivoting),
+/// sequentially: callers run configurations in parallel, and faer's own threads would compete
+/// with them.
+fn lu_solve_in_place(mut a: Mat<Complex64>, mut b: faer::MatMut<'_, Complex64>) {
+    let n = a.nrows();
+    let par = Par::Seq;
+    let mut perm = vec![0usize; n];
+    let mut perm_inv = vec![0usize; n];
+    let scratch =
+        factor::lu_in_place_scratch::<usize, Complex64>(n, n, par, Default::default()).or(
+            lu_solve::solve_in_place_scratch::<usize, Complex64>(n, b.ncols(), par),
+        );
+    let mut buffer = MemBuffer::new(scratch);
+    let stack = MemStack::new(&mut buffer);
+    let (_, perm) = factor::lu_in_place(
+        a.as_mut(),
+        &mut perm,
+        &mut perm_inv,
+        par,
+        stack,
+        Default::default(),
+    );
+    // L (unit lower) and U (upper) share the factorised matrix; each solve reads its triangle.
+    lu_solve::solve_in_place(a.as_ref(), a.as_ref(), perm, b.as_mut(), par, stack);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lu_solve_solves_a_complex_system() {
+        // A small non-symmetric complex system with pivoting needed (zero leading entry).
+        let n = 7;
+        let entry = |i: usize, j: usize| {
+            if i == 0 && j == 0 {
+                Complex64::new(0.0, 0.0)
+            } else {
+                Complex64::new(
+                    ((3 * i + 5 * j) % 7) as f64 - 3.0,
+                    ((i * j) % 5) as f64 - 1.5,
+                ) + if i == j {
+                    Complex64::new(6.0, 0.0)
+                } else {
+                    Complex64::new(0.0, 0.0)
+                }
+            }
+        };
+        let a = Mat::<Complex64>::from_fn(n, n, entry);
+        let x = Mat::<Complex64>::from_fn(n, 2, |i, s| {
+            Complex64::new(i as f64 + s as f64, 1.0 - i as f64)
+        });
+        let mut b =
+            Mat::<Complex64>::from_fn(n, 2, |i, s| (0..n).map(|m| entry(i, m) * x[(m, s)]).sum());
+        lu_solve_in_place(a, b.as_mut());
+        for i in 0..n {
+            for s in 0..2 {
+                assert!((b[(i, s)] - x[(i, s)]).norm() < 1e-12, "{i} {s}");
+            }
+        }
+    }
+}
