@@ -1,16 +1,17 @@
 //! The subcommands: render, stage the outputs, write them all at once, report.
 
 use crate::image::{Gray, scale_for};
-use crate::npy::encode_c16;
+use crate::npy::{encode_c16, encode_f8};
 use crate::output::Staged;
 use crate::progress::{CliProgress, interrupted};
-use crate::scene::Loaded;
+use crate::scene::{Grid, Loaded};
 use crate::{Cancelled, InputError};
 use serde_json::{Value, json};
 use speckle::estimators::{
     CMatrix, Coherence, CovarianceOptions, EstimatorError, FieldOptions, MatrixEstimate,
-    render_covariance, render_fields, render_single_scattering, speckle_means,
+    render_covariance, render_fields, render_intensity, render_single_scattering, speckle_means,
 };
+use speckle::medium::Dimension;
 use speckle::phase::Complex64;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -66,6 +67,16 @@ fn coherence_name(c: Coherence) -> &'static str {
 
 /// The parts of every JSON sidecar.
 fn sidecar(l: &Loaded, command: &str, render: Value, files: Value, summary: Value) -> Value {
+    let (point_source, far_field_sensor) = match l.dimension() {
+        Dimension::Three => (
+            "exp(i k r) / r",
+            "scattering amplitude A(v): u(R v) = A(v) exp(i k R) / R as R -> inf",
+        ),
+        Dimension::Two => (
+            "exp(i k r) / sqrt(r) (flatland)",
+            "flatland scattering amplitude A(v): u(R v) = A(v) exp(i k R) / sqrt(R) as R -> inf",
+        ),
+    };
     json!({
         "command": command,
         "scene_file": l.origin,
@@ -82,8 +93,8 @@ fn sidecar(l: &Loaded, command: &str, render: Value, files: Value, summary: Valu
         "units": {
             "length": "the scene's unit (that of `wavelength`)",
             "plane_wave_source": "unit amplitude exp(i k d.x)",
-            "point_source": "exp(i k r) / r",
-            "far_field_sensor": "scattering amplitude A(v): u(R v) = A(v) exp(i k R) / R as R -> inf",
+            "point_source": point_source,
+            "far_field_sensor": far_field_sensor,
             "point_sensor": "field value u(q)",
             "covariance": "C[j1, j2] = E[u_j1 conj(u_j2)] - E[u_j1] conj(E[u_j2])",
         },
@@ -106,14 +117,18 @@ fn mean_diagonal(m: &CMatrix) -> f64 {
     d.iter().map(|c| c.re).sum::<f64>() / d.len().max(1) as f64
 }
 
+/// Largest relative standard error of `(value, standard error)` pairs (0 for zero values).
+fn max_relative_error(v: impl Iterator<Item = (f64, f64)>) -> f64 {
+    v.map(|(v, s)| if v != 0.0 { s / v.abs() } else { 0.0 })
+        .fold(0.0, f64::max)
+}
+
 /// Largest relative standard error of the diagonal (real parts).
 fn max_relative_diagonal_error(e: &MatrixEstimate) -> f64 {
-    (0..e.value.rows())
-        .map(|i| {
-            let (v, s) = e.get(i, i);
-            if v.re != 0.0 { s.re / v.re.abs() } else { 0.0 }
-        })
-        .fold(0.0, f64::max)
+    max_relative_error((0..e.value.rows()).map(|i| {
+        let (v, s) = e.get(i, i);
+        (v.re, s.re)
+    }))
 }
 
 /// `|C| / max |C|` as an image, upscaled.
@@ -122,6 +137,13 @@ fn magnitude_png(m: &CMatrix, scale: Option<u32>) -> anyhow::Result<Vec<u8>> {
     let max = v.iter().copied().fold(0.0, f64::max);
     let g = Gray::from_values(m.cols(), m.rows(), &v, max);
     g.upscaled(scale_for(m.cols(), m.rows(), scale))
+        .encode_png()
+}
+
+/// One value per sensor of the image `g` as a PNG (`white` maps to 255), upscaled.
+fn grid_png(l: &Loaded, g: Grid, values: &[f64], white: f64) -> anyhow::Result<Vec<u8>> {
+    Gray::from_values(g.nx, g.ny, values, white)
+        .upscaled(scale_for(g.nx, g.ny, l.file.output.png_scale))
         .encode_png()
 }
 
@@ -139,6 +161,29 @@ fn covariance_bytes(j: usize) -> f64 {
     (j as f64).powi(2) * 16.0 * (12.0 + 4.0 * threads() as f64)
 }
 
+/// The options of a path-traced render (covariance, intensity, single scattering).
+fn covariance_options(l: &Loaded) -> CovarianceOptions {
+    let r = &l.file.render;
+    CovarianceOptions {
+        paths: r.paths,
+        seed: r.seed,
+        coherence: l.coherence,
+    }
+}
+
+/// The `render` part of the sidecar of a path-traced render.
+fn paths_render_json(l: &Loaded, wall: f64) -> Value {
+    let r = &l.file.render;
+    json!({
+        "paths": r.paths,
+        "seed": r.seed,
+        "coherence": coherence_name(l.coherence),
+        "threads": threads(),
+        "tracer": l.tracer_json(),
+        "wall_time_s": wall,
+    })
+}
+
 /// Refuses covariances too large for memory; returns `J` and the covariance options.
 fn covariance_setup(l: &Loaded) -> anyhow::Result<(usize, CovarianceOptions)> {
     let j = l.pairs();
@@ -151,13 +196,7 @@ fn covariance_setup(l: &Loaded) -> anyhow::Result<(usize, CovarianceOptions)> {
         ))
         .into());
     }
-    let r = &l.file.render;
-    let opts = CovarianceOptions {
-        paths: r.paths,
-        seed: r.seed,
-        coherence: l.coherence,
-    };
-    Ok((j, opts))
+    Ok((j, covariance_options(l)))
 }
 
 /// `speckle covariance`.
@@ -220,15 +259,7 @@ pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         files["png"] = json!({"file": format!("{n}.cov.png"),
                               "scale": "gray = round(255 |C| / max |C|), pixel replication"});
     }
-    let render = json!({
-        "paths": r.paths,
-        "seed": r.seed,
-        "coherence": coherence_name(l.coherence),
-        "threads": threads(),
-        "tracer": l.tracer_json(),
-        "wall_time_s": wall,
-    });
-    let meta = sidecar(l, "covariance", render, files, summary);
+    let meta = sidecar(l, "covariance", paths_render_json(l, wall), files, summary);
     staged.add(format!("{n}.cov.json"), pretty(&meta)?);
     say!(
         "{n}: covariance of J = {j} pairs from {} paths in {wall:.2} s ({} threads); mean \
@@ -236,6 +267,79 @@ pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         r.paths,
         threads(),
         100.0 * max_relative_diagonal_error(&est.total)
+    );
+    finish(staged)
+}
+
+/// `speckle intensity`: the diagonal of the covariance alone, `O(J)` per vertex.
+pub fn intensity(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
+    let opts = covariance_options(l);
+    let r = &l.file.render;
+    let (est, wall) = run.timed(l, r.paths, |p| render_intensity(&l.scene, &opts, p))?;
+
+    // The estimate's matrices are J x 1 columns; the diagonal of a covariance is real.
+    let re = |m: &CMatrix| m.as_slice().iter().map(|c| c.re).collect::<Vec<f64>>();
+    let (total, se, single) = (
+        re(&est.total.value),
+        re(&est.total.std_error),
+        re(&est.single.value),
+    );
+    let n = &l.name;
+    let shape = l.pair_shape();
+    let mut staged = Staged::new(l.out_dir());
+    let mut files = json!({
+        "shape": shape,
+        "layout": if l.all_pairs {
+            "float64 (n_sources, n_sensors): [s, d] = pair (source s, sensor d); for a sensor \
+             grid, reshape the last axis to (ny, nx)"
+        } else {
+            "float64 (J,): [j] = pairs[j]"
+        },
+        "content": "intensity: C[j, j] = E|u_j|^2 - |E u_j|^2 (single + multiple scattering; \
+                    add |mean|^2 from `speckle mean` for E|u_j|^2); intensity_se: its standard \
+                    error (batch means over 128 batches); intensity_single: its \
+                    single-scattering part",
+    });
+    for (key, v) in [
+        ("intensity", &total),
+        ("intensity_se", &se),
+        ("intensity_single", &single),
+    ] {
+        let file = format!("{n}_{key}.npy");
+        staged.add(file.clone(), encode_f8(&shape, v));
+        files[key] = json!(file);
+    }
+    if let Some(g) = l.png_grid() {
+        let mut png_files = Vec::new();
+        for (s, row) in total.chunks_exact(l.n_sensors()).enumerate() {
+            let file = format!("{n}_intensity.s{s}.png");
+            let max = row.iter().copied().fold(0.0, f64::max);
+            staged.add(file.clone(), grid_png(l, g, row, max)?);
+            png_files.push(file);
+        }
+        files["png"] = json!({
+            "files": png_files,
+            "naming": "<name>_intensity.s{source}.png, row 0 = iy 0 (top), column = ix",
+            "scale": "gray = round(255 I / max I) per source; pixel replication",
+        });
+    }
+    let average = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let mean = average(&total);
+    let max_rel = max_relative_error(total.iter().copied().zip(se.iter().copied()));
+    let summary = json!({
+        "mean_intensity": mean,
+        "mean_intensity_single": average(&single),
+        "max_relative_stderr": max_rel,
+    });
+    let meta = sidecar(l, "intensity", paths_render_json(l, wall), files, summary);
+    staged.add(format!("{n}_intensity.json"), pretty(&meta)?);
+    say!(
+        "{n}: intensity of J = {} pairs from {} paths in {wall:.2} s ({} threads); mean \
+         {mean:.4e} (max relative stderr {:.2}%)",
+        l.pairs(),
+        r.paths,
+        threads(),
+        100.0 * max_rel
     );
     finish(staged)
 }
@@ -361,11 +465,7 @@ pub fn fields(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
 
     let n = &l.name;
     let (ns, nd, rr) = (l.n_sources(), l.n_sensors(), r.realizations);
-    let shape: Vec<usize> = if l.all_pairs {
-        vec![rr, ns, nd]
-    } else {
-        vec![rr, j]
-    };
+    let shape: Vec<usize> = [vec![rr], l.pair_shape()].concat();
     let data = est.fields.as_slice();
     let mut staged = Staged::new(l.out_dir());
     staged.add(format!("{n}.fields.npy"), encode_c16(&shape, data));
@@ -401,15 +501,13 @@ pub fn fields(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
     };
 
     let mut png_files = Vec::new();
-    let png = l.file.output.png && l.all_pairs && l.grid.is_some();
-    if png && let Some(g) = l.grid {
-        let scale = scale_for(g.nx, g.ny, l.file.output.png_scale);
+    let png = l.png_grid();
+    if let Some(g) = png {
         for q in 0..rr.min(l.file.output.png_realizations) {
             for (s, &(mean_i, _)) in per_source.iter().enumerate() {
                 let row = &intensity[(q * ns + s) * nd..(q * ns + s + 1) * nd];
-                let img = Gray::from_values(g.nx, g.ny, row, 3.0 * mean_i).upscaled(scale);
                 let name = format!("{n}.r{q}.s{s}.png");
-                staged.add(name.clone(), img.encode_png()?);
+                staged.add(name.clone(), grid_png(l, g, row, 3.0 * mean_i)?);
                 png_files.push(name);
             }
         }
@@ -434,7 +532,7 @@ pub fn fields(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
     if r.add_mean {
         files["mean"] = json!(format!("{n}.mean.npy"));
     }
-    if png {
+    if png.is_some() {
         files["png"] = json!({
             "files": png_files,
             "naming": "<name>.r{realization}.s{source}.png, row 0 = iy 0 (top), column = ix",
@@ -473,6 +571,13 @@ pub fn check(l: &Loaded) {
     let f = |k: &str| d[k].clone();
     say!("{}: ok", l.origin);
     say!("  name                 {}", l.name);
+    say!(
+        "  dimension            {}",
+        match l.dimension() {
+            Dimension::Three => "3",
+            Dimension::Two => "2 (flatland: the plane z = 0)",
+        }
+    );
     say!("  wavelength           {}", l.scene.wavelength());
     say!(
         "  medium               box {} to {}, size {} wavelengths",

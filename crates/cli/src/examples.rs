@@ -1,4 +1,10 @@
-//! The example scenes of `scenes/`, embedded in the binary.
+//! The example scenes of `scenes/` (and of `crates/cli/scenes/`), embedded in the binary, and the
+//! data files they use.
+//!
+//! Design decision: an embedded scene must work from any directory, so the tables it needs are
+//! embedded too and named in the scene as `file = "embedded:NAME"` (see [`data`]); no file is
+//! written next to a printed scene. A user who wants to edit a table replaces that line with the
+//! path of a copy.
 
 /// `(name, TOML text)` of every embedded example; the first is the default.
 pub const EXAMPLES: &[(&str, &str)] = &[
@@ -19,16 +25,46 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "point_sensors",
         include_str!("../../../scenes/point_sensors.toml"),
     ),
+    (
+        "mudiff_cbs_2d",
+        include_str!("../scenes/mudiff_cbs_2d.toml"),
+    ),
 ];
+
+/// `(name, text)` of the embedded data files, which scenes name as `embedded:NAME`.
+pub const DATA: &[(&str, &str)] = &[(
+    "mudiff_cbs_2d/amplitude_function.csv",
+    include_str!("../../../validation/data/mudiff_cbs_2d/amplitude_function.csv"),
+)];
+
+/// The text of the entry of `table` called `name`.
+fn find(table: &[(&str, &'static str)], name: &str) -> Option<&'static str> {
+    table.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+}
+
+/// The names of the entries of `table`.
+fn keys(table: &[(&'static str, &str)]) -> Vec<&'static str> {
+    table.iter().map(|(n, _)| *n).collect()
+}
 
 /// The text of the example called `name`.
 pub fn example(name: &str) -> Option<&'static str> {
-    EXAMPLES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+    find(EXAMPLES, name)
 }
 
 /// The names of all examples.
 pub fn names() -> Vec<&'static str> {
-    EXAMPLES.iter().map(|(n, _)| *n).collect()
+    keys(EXAMPLES)
+}
+
+/// The text of the embedded data file called `name` (without the `embedded:` prefix).
+pub fn data(name: &str) -> Option<&'static str> {
+    find(DATA, name)
+}
+
+/// The names of all embedded data files.
+pub fn data_names() -> Vec<&'static str> {
+    keys(DATA)
 }
 
 #[cfg(test)]

@@ -1,9 +1,10 @@
 //! `speckle`: the command-line renderer of speckle statistics.
 //!
-//! Reads a TOML scene (a homogeneous box of scatterers, a phase function, sources and sensors),
-//! renders the speckle covariance, single-scattering covariance, speckle mean or field
-//! realizations with the estimators of `speckle::estimators` (Bar et al. 2019), and writes NumPy
-//! `.npy` arrays (complex128), a JSON sidecar and PNG previews.
+//! Reads a TOML scene (a homogeneous box of scatterers, a phase function, sources and sensors; in
+//! 3D or in flatland), renders the speckle covariance, intensity, single-scattering covariance,
+//! speckle mean or field realizations with the estimators of `speckle::estimators` (Bar et al.
+//! 2019), and writes NumPy `.npy` arrays (complex128, float64 for intensities), a JSON sidecar
+//! and PNG previews.
 //!
 //! Design decision: this binary owns argument parsing, scene-file validation and output; the
 //! library crates never see a file or a terminal. Every bad input is reported with the path of
@@ -89,6 +90,9 @@ struct Cli {
 enum Command {
     /// Render the speckle covariance of all pairs (Alg. 1) and the speckle mean.
     Covariance(CovarianceArgs),
+    /// Render the speckle intensity of every pair alone (the covariance diagonal; O(J) per
+    /// vertex, for many sensors).
+    Intensity(CovarianceArgs),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(FieldsArgs),
     /// Render the single-scattering covariance alone (Eq. 41; no path tracing).
@@ -228,6 +232,19 @@ fn load(path: &Path, overrides: &Overrides) -> anyhow::Result<Loaded> {
     Ok(scene::load_file(path, overrides)?)
 }
 
+impl CovarianceArgs {
+    /// Loads the scene with the command-line values of `covariance` and `intensity`.
+    fn load(&self) -> anyhow::Result<Loaded> {
+        let o = Overrides {
+            paths: self.paths,
+            forward_only: self.forward_only,
+            no_png: self.no_png,
+            ..self.common.overrides()
+        };
+        load(&self.common.scene, &o)
+    }
+}
+
 impl Common {
     fn overrides(&self) -> Overrides {
         Overrides {
@@ -250,14 +267,10 @@ impl Common {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Covariance(a) => {
-            let o = Overrides {
-                paths: a.paths,
-                forward_only: a.forward_only,
-                no_png: a.no_png,
-                ..a.common.overrides()
-            };
-            let l = load(&a.common.scene, &o)?;
-            commands::covariance(&l, a.common.run()?)?;
+            commands::covariance(&a.load()?, a.common.run()?)?;
+        }
+        Command::Intensity(a) => {
+            commands::intensity(&a.load()?, a.common.run()?)?;
         }
         Command::Single(a) => {
             let o = Overrides {

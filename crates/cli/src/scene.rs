@@ -8,9 +8,9 @@ use crate::spec::{
 };
 use serde_json::{Value, json};
 use speckle::estimators::{Coherence, EstimatorError, Pair, Scene, Sensor, Source};
-use speckle::medium::{Aabb, DVec3, HomogeneousBox, Medium};
+use speckle::medium::{Aabb, DVec3, Dimension, HomogeneousBox, Medium};
 use speckle::paths::{FirstDirection, FirstVertex, TracerConfig};
-use speckle::phase::{Complex64, Phase, PhaseFunction, TabulatedAmplitude};
+use speckle::phase::{Complex64, FlatTabulatedAmplitude, Phase, PhaseFunction, TabulatedAmplitude};
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -123,6 +123,85 @@ fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, InputError> {
     }
 }
 
+/// `v` (finite) after checking that it lies in the plane `z = 0` when `dim` is flatland.
+fn planar(field: &str, v: DVec3, dim: Dimension) -> Result<DVec3, InputError> {
+    if dim == Dimension::Two && v.z != 0.0 {
+        return Err(bad(
+            format!("{field}[2]"),
+            format!(
+                "must be 0 in flatland (dimension = 2): everything lies in the plane z = 0 \
+                 (got {})",
+                v.z
+            ),
+        ));
+    }
+    Ok(v)
+}
+
+/// A finite position, in the plane `z = 0` in flatland.
+fn position(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, InputError> {
+    planar(field, vec3(field, v)?, dim)
+}
+
+/// A unit direction, in the plane `z = 0` in flatland.
+fn flat_direction(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, InputError> {
+    planar(field, vec3(field, v)?, dim)?;
+    direction(field, v)
+}
+
+/// The default propagation or viewing direction of generators: `+z`, or `+y` in flatland.
+fn forward(dim: Dimension) -> [f64; 3] {
+    match dim {
+        Dimension::Three => [0.0, 0.0, 1.0],
+        Dimension::Two => [0.0, 1.0, 0.0],
+    }
+}
+
+/// Validates the start direction (`start_key`) and the rotation axis of a generator
+/// (`plane_tilts`, `far_arc`), filling in their defaults: `+z` and `+y`, or `+y` and `+z` in
+/// flatland, where the axis must be `+z` or `-z`. `f` names a field of the entry.
+fn rotation(
+    f: &dyn Fn(&str) -> String,
+    start_key: &str,
+    start: &mut Option<[f64; 3]>,
+    axis: &mut Option<[f64; 3]>,
+    dim: Dimension,
+) -> Result<(DVec3, DVec3), InputError> {
+    let d = flat_direction(&f(start_key), *start.get_or_insert(forward(dim)), dim)?;
+    let default_axis = match dim {
+        Dimension::Three => [0.0, 1.0, 0.0],
+        Dimension::Two => [0.0, 0.0, 1.0],
+    };
+    let v = *axis.get_or_insert(default_axis);
+    let a = direction(&f("axis"), v)?;
+    if dim == Dimension::Two && (a.x != 0.0 || a.y != 0.0) {
+        return Err(bad(
+            f("axis"),
+            format!(
+                "must be [0, 0, 1] or [0, 0, -1] in flatland, so that the rotations stay in the \
+                 plane z = 0 (got {v:?})"
+            ),
+        ));
+    }
+    if a.cross(d).length() < 1e-9 {
+        return Err(bad(
+            f("axis"),
+            format!("must not be parallel to the {start_key} (the rotations would do nothing)"),
+        ));
+    }
+    Ok((d, a))
+}
+
+/// `v` rotated about the unit `axis` by `deg` degrees, normalised; exactly in the plane `z = 0`
+/// in flatland.
+fn rotated(v: DVec3, axis: DVec3, deg: f64, dim: Dimension) -> DVec3 {
+    let r = rotate(v, axis, deg.to_radians()).normalize();
+    match dim {
+        Dimension::Three => r,
+        Dimension::Two => DVec3::new(r.x, r.y, 0.0),
+    }
+}
+
 fn outside(field: &str, p: DVec3, b: &Aabb, what: &str) -> Result<DVec3, InputError> {
     if b.contains(p) {
         Err(bad(
@@ -155,17 +234,21 @@ fn parse(text: &str) -> Result<SceneFile, InputError> {
     let de = toml::Deserializer::parse(text)
         .map_err(|e| InputError(e.to_string().trim_end().to_string()))?;
     serde_path_to_error::deserialize(de).map_err(|e| {
-        let mut path = e.path().to_string();
-        let inner = e.into_inner();
-        let message = inner.message().to_string();
-        // Unknown keys inside tagged tables are reported at the table; name the key itself.
-        if let Some(key) = message
+        let message = e.inner().message().to_string();
+        // Unknown keys and type errors inside tagged tables are reported at the table; name the
+        // key itself.
+        let key = message
             .strip_prefix("unknown field `")
             .and_then(|r| r.split('`').next())
-            && !path.ends_with(key)
+            .map(str::to_string)
+            .or_else(|| tagged_culprit(text, e.path(), &message));
+        let mut path = e.path().to_string();
+        let inner = e.into_inner();
+        if let Some(key) = key
+            && !path.ends_with(&key)
         {
             path = if path == "." {
-                key.to_string()
+                key
             } else {
                 format!("{path}.{key}")
             };
@@ -180,6 +263,50 @@ fn parse(text: &str) -> Result<SceneFile, InputError> {
             InputError(format!("{path}: {message}\n{}", location.trim_end()))
         }
     })
+}
+
+/// Serde reports a type error inside an internally tagged table (`[phase]`, an entry of
+/// `[[sources]]` or `[[sensors]]`) at the table, because such a table is buffered before its
+/// `type` is known. Finds the key: the one whose removal changes the error (serde stops at the
+/// first bad key, in document order, before it looks for missing keys).
+fn tagged_culprit(text: &str, path: &serde_path_to_error::Path, message: &str) -> Option<String> {
+    use serde::Deserialize;
+    use serde_path_to_error::Segment;
+    if !message.starts_with("invalid ") {
+        return None;
+    }
+    let mut segments = path.iter();
+    let Some(Segment::Map { key: top }) = segments.next() else {
+        return None;
+    };
+    if !matches!(top.as_str(), "phase" | "sources" | "sensors") {
+        return None;
+    }
+    let doc: toml::Table = toml::from_str(text).ok()?;
+    let mut value = doc.get(top)?;
+    for s in segments {
+        value = match s {
+            Segment::Seq { index } => value.get(*index)?,
+            _ => return None,
+        };
+    }
+    let table = value.as_table()?;
+    let error_without = |key: &str| {
+        let mut t = table.clone();
+        t.remove(key);
+        let t = toml::Value::Table(t);
+        let e = match top.as_str() {
+            "phase" => PhaseSpec::deserialize(t).err(),
+            "sources" => SourceSpec::deserialize(t).err(),
+            _ => SensorSpec::deserialize(t).err(),
+        };
+        e.map(|e| e.message().to_string())
+    };
+    table
+        .keys()
+        .filter(|k| *k != "type")
+        .find(|k| error_without(k).as_deref() != Some(message))
+        .cloned()
 }
 
 /// Loads and validates a scene file.
@@ -253,13 +380,23 @@ fn check_name(name: &str) -> Result<(), InputError> {
     }
 }
 
-fn build_medium(m: &MediumSpec) -> Result<HomogeneousBox, InputError> {
-    let mut size = [0.0; 3];
-    for (i, s) in m.size.iter().enumerate() {
-        size[i] = positive(format!("medium.size[{i}]"), *s)?;
+fn build_medium(m: &MediumSpec, dim: Dimension) -> Result<HomogeneousBox, InputError> {
+    for (i, s) in m.size.iter().enumerate().take(dim.count() as usize) {
+        positive(format!("medium.size[{i}]"), *s).map_err(|e| match (i, *s == 0.0) {
+            (2, true) => InputError(format!("{} (for flatland, set dimension = 2)", e.0)),
+            _ => e,
+        })?;
     }
-    let center = vec3("medium.center", m.center)?;
-    let b = Aabb::centered(center, DVec3::from_array(size)).map_err(|e| bad("medium", e))?;
+    let size = position("medium.size", m.size, dim)?;
+    let center = position("medium.center", m.center, dim)?;
+    let b = match dim {
+        Dimension::Three => Aabb::centered(center, size),
+        Dimension::Two => {
+            let (c, h) = (center.truncate(), 0.5 * size.truncate());
+            Aabb::flat(c - h, c + h)
+        }
+    }
+    .map_err(|e| bad("medium", e))?;
     let either = "give either sigma_s (and optionally sigma_a) or mean_free_path (and optionally \
                   albedo)";
     let medium = match (m.sigma_s, m.sigma_a, m.mean_free_path, m.albedo) {
@@ -302,12 +439,12 @@ fn build_medium(m: &MediumSpec) -> Result<HomogeneousBox, InputError> {
     medium.map_err(|e| bad("medium", e))
 }
 
-fn build_phase(p: &PhaseSpec, base: &Path) -> Result<Phase, InputError> {
+fn build_phase(p: &PhaseSpec, base: &Path, dim: Dimension) -> Result<Phase, InputError> {
     match p {
-        PhaseSpec::Isotropic {} => Ok(Phase::Isotropic),
+        PhaseSpec::Isotropic {} => Ok(Phase::isotropic(dim)),
         PhaseSpec::Hg { g } => {
             if g.is_finite() && g.abs() < 1.0 {
-                Phase::hg(*g).map_err(|e| bad("phase.g", e))
+                Phase::hg_in(dim, *g).map_err(|e| bad("phase.g", e))
             } else {
                 Err(bad(
                     "phase.g",
@@ -316,18 +453,41 @@ fn build_phase(p: &PhaseSpec, base: &Path) -> Result<Phase, InputError> {
             }
         }
         PhaseSpec::Tabulated { file } => {
-            let path = base.join(file);
-            let table = read_table(&path).map_err(|e| bad("phase.file", e))?;
-            Ok(Phase::Tabulated(Arc::new(table)))
+            let embedded = file.to_str().and_then(|f| f.strip_prefix(EMBEDDED));
+            let (text, shown) = match embedded {
+                Some(name) => {
+                    let text = crate::examples::data(name).ok_or_else(|| {
+                        bad(
+                            "phase.file",
+                            format!(
+                                "no embedded table called {name:?}; the embedded tables are: {}",
+                                crate::examples::data_names().join(", ")
+                            ),
+                        )
+                    })?;
+                    (text.to_string(), file.display().to_string())
+                }
+                None => {
+                    let path = base.join(file);
+                    let shown = path.display().to_string();
+                    let text = std::fs::read_to_string(&path)
+                        .map_err(|e| bad("phase.file", format!("cannot read {shown}: {e}")))?;
+                    (text, shown)
+                }
+            };
+            read_table(&text, &shown, dim).map_err(|e| bad("phase.file", e))
         }
     }
 }
 
-/// Reads a CSV amplitude table. The first line that is neither blank nor a `#` comment is the
-/// header: `theta_rad,re,im`, `theta_deg,re,im` or `mu,re,im`.
-fn read_table(path: &Path) -> Result<TabulatedAmplitude, String> {
-    let shown = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {shown}: {e}"))?;
+/// The prefix of `phase.file` that names a table embedded in the binary.
+const EMBEDDED: &str = "embedded:";
+
+/// Reads a CSV amplitude table (`shown` names it in errors). The first line that is neither blank
+/// nor a `#` comment is the header: `theta_rad,re,im`, `theta_deg,re,im` or (3D only)
+/// `mu,re,im`, with `re_s` and `im_s` accepted for `re` and `im`. Angles cover `[0, pi]` in 3D
+/// and the signed scattering angle over `[0, 2 pi]` in flatland.
+fn read_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String> {
     let mut lines = text
         .lines()
         .enumerate()
@@ -341,14 +501,29 @@ fn read_table(path: &Path) -> Result<TabulatedAmplitude, String> {
         .map(|c| c.trim().to_ascii_lowercase())
         .collect();
     let abscissa = match cols.iter().map(String::as_str).collect::<Vec<_>>()[..] {
-        [a @ ("theta_rad" | "theta_deg" | "mu"), "re", "im"] => a.to_string(),
+        [
+            a @ ("theta_rad" | "theta_deg" | "mu"),
+            "re" | "re_s",
+            "im" | "im_s",
+        ] => a.to_string(),
         _ => {
+            let allowed = match dim {
+                Dimension::Three => "`theta_rad,re,im`, `theta_deg,re,im` or `mu,re,im`",
+                Dimension::Two => "`theta_rad,re,im` or `theta_deg,re,im`",
+            };
             return Err(format!(
-                "{shown} line {hl}: the header must be `theta_rad,re,im`, `theta_deg,re,im` or \
-                 `mu,re,im` (got `{header}`)"
+                "{shown} line {hl}: the header must be {allowed} (`re_s`, `im_s` are accepted \
+                 for `re`, `im`; got `{header}`)"
             ));
         }
     };
+    if dim == Dimension::Two && abscissa == "mu" {
+        return Err(format!(
+            "{shown} line {hl}: a `mu` column cannot describe a flatland amplitude, which depends \
+             on the signed scattering angle (mu = cos theta loses the sign); tabulate \
+             `theta_rad` over [0, 2 pi] or `theta_deg` over [0, 360] instead"
+        ));
+    }
     let (mut x, mut s) = (Vec::new(), Vec::new());
     for (n, line) in lines {
         let v: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -376,31 +551,47 @@ fn read_table(path: &Path) -> Result<TabulatedAmplitude, String> {
     if x.len() < 2 {
         return Err(format!("{shown}: at least two rows are needed"));
     }
-    let table = match abscissa.as_str() {
-        "mu" => TabulatedAmplitude::new(x, s),
-        unit => {
-            let scale = if unit == "theta_deg" {
-                std::f64::consts::PI / 180.0
-            } else {
-                1.0
-            };
-            let theta: Vec<f64> = x.iter().map(|t| t * scale).collect();
-            let pi = std::f64::consts::PI;
-            if let Some(i) = theta.iter().position(|t| !(-1e-9..=pi + 1e-9).contains(t)) {
-                return Err(format!(
-                    "{shown}: row {} has an angle outside [0, pi] ({} {unit})",
-                    i + 1,
-                    x[i]
-                ));
-            }
-            TabulatedAmplitude::from_angles(&theta, &s)
-        }
+    let wrap = |e: speckle::phase::PhaseError| format!("{shown}: {e}");
+    if abscissa == "mu" {
+        let table = TabulatedAmplitude::new(x, s).map_err(wrap)?;
+        return Ok(Phase::Tabulated(Arc::new(table)));
+    }
+    let scale = if abscissa == "theta_deg" {
+        std::f64::consts::PI / 180.0
+    } else {
+        1.0
     };
-    table.map_err(|e| format!("{shown}: {e}"))
+    let (max, range) = match dim {
+        Dimension::Three => (std::f64::consts::PI, "[0, pi]"),
+        Dimension::Two => (std::f64::consts::TAU, "[0, 2 pi]"),
+    };
+    let theta: Vec<f64> = x.iter().map(|t| t * scale).collect();
+    if let Some(i) = theta.iter().position(|t| !(-1e-9..=max + 1e-9).contains(t)) {
+        return Err(format!(
+            "{shown}: row {} has an angle outside {range} ({} {abscissa})",
+            i + 1,
+            x[i]
+        ));
+    }
+    Ok(match dim {
+        Dimension::Three => Phase::Tabulated(Arc::new(
+            TabulatedAmplitude::from_angles(&theta, &s).map_err(wrap)?,
+        )),
+        Dimension::Two => {
+            // Rounding (360 degrees, 2 pi printed to 16 digits) may step just outside the range.
+            let theta = theta.iter().map(|t| t.clamp(0.0, max)).collect();
+            let table = FlatTabulatedAmplitude::new(theta, s).map_err(wrap)?;
+            Phase::FlatTabulated(Arc::new(table))
+        }
+    })
 }
 
-/// Expands `[[sources]]`.
-fn build_sources(specs: &[SourceSpec], b: &Aabb) -> Result<(Vec<Source>, Vec<Value>), InputError> {
+/// Expands `[[sources]]`, filling in the defaults of generator entries.
+fn build_sources(
+    specs: &mut [SourceSpec],
+    b: &Aabb,
+) -> Result<(Vec<Source>, Vec<Value>), InputError> {
+    let dim = b.dimension();
     if specs.is_empty() {
         return Err(bad(
             "sources",
@@ -408,18 +599,18 @@ fn build_sources(specs: &[SourceSpec], b: &Aabb) -> Result<(Vec<Source>, Vec<Val
         ));
     }
     let (mut out, mut desc) = (Vec::new(), Vec::new());
-    for (i, s) in specs.iter().enumerate() {
+    for (i, s) in specs.iter_mut().enumerate() {
         let f = |k: &str| format!("sources[{i}].{k}");
         match s {
             SourceSpec::Plane { direction: d } => {
-                let d = direction(&f("direction"), *d)?;
+                let d = flat_direction(&f("direction"), *d, dim)?;
                 out.push(Source::PlaneWave { direction: d });
                 desc.push(json!({"entry": i, "type": "plane", "direction": arr(d)}));
             }
             SourceSpec::Point { position } => {
                 let p = outside(
                     &f("position"),
-                    vec3(&f("position"), *position)?,
+                    self::position(&f("position"), *position, dim)?,
                     b,
                     "position",
                 )?;
@@ -431,20 +622,13 @@ fn build_sources(specs: &[SourceSpec], b: &Aabb) -> Result<(Vec<Source>, Vec<Val
                 axis,
                 tilts_deg,
             } => {
-                let d = direction(&f("direction"), *d)?;
-                let a = direction(&f("axis"), *axis)?;
-                if a.cross(d).length() < 1e-9 {
-                    return Err(bad(
-                        f("axis"),
-                        "must not be parallel to the direction (the tilts would do nothing)",
-                    ));
-                }
+                let (d, a) = rotation(&f, "direction", d, axis, dim)?;
                 if tilts_deg.is_empty() {
                     return Err(bad(f("tilts_deg"), "at least one tilt is needed"));
                 }
                 for (k, t) in tilts_deg.iter().enumerate() {
                     let t = finite(format!("{}[{k}]", f("tilts_deg")), *t)?;
-                    let v = rotate(d, a, t.to_radians()).normalize();
+                    let v = rotated(d, a, t, dim);
                     out.push(Source::PlaneWave { direction: v });
                     desc.push(json!({"entry": i, "type": "plane", "direction": arr(v),
                                      "tilt_deg": t}));
@@ -499,9 +683,10 @@ fn grid_counts(field: &str, nx: usize, ny: usize) -> Result<(), InputError> {
 /// Expands `[[sensors]]`.
 #[allow(clippy::type_complexity)]
 fn build_sensors(
-    specs: &[SensorSpec],
+    specs: &mut [SensorSpec],
     b: &Aabb,
 ) -> Result<(Vec<Sensor>, Vec<Value>, Option<Grid>), InputError> {
+    let dim = b.dimension();
     if specs.is_empty() {
         return Err(bad(
             "sensors",
@@ -509,19 +694,19 @@ fn build_sensors(
         ));
     }
     let (mut out, mut desc) = (Vec::new(), Vec::new());
-    for (i, s) in specs.iter().enumerate() {
+    for (i, s) in specs.iter_mut().enumerate() {
         let e = format!("sensors[{i}]");
         let f = |k: &str| format!("sensors[{i}].{k}");
         match s {
             SensorSpec::Far { direction: d } => {
-                let d = direction(&f("direction"), *d)?;
+                let d = flat_direction(&f("direction"), *d, dim)?;
                 out.push(Sensor::FarField { direction: d });
                 desc.push(json!({"entry": i, "type": "far", "direction": arr(d)}));
             }
             SensorSpec::Point { position } => {
                 let p = outside(
                     &f("position"),
-                    vec3(&f("position"), *position)?,
+                    self::position(&f("position"), *position, dim)?,
                     b,
                     "position",
                 )?;
@@ -535,8 +720,15 @@ fn build_sensors(
                 nx,
                 ny,
             } => {
+                if dim == Dimension::Two {
+                    return Err(bad(
+                        e,
+                        "far_grid is an image of 3D directions and has no flatland form; use \
+                         far_arc (a fan of directions in the plane) in a dimension = 2 scene",
+                    ));
+                }
                 let c = direction(&f("center"), *center)?;
-                for (key, range) in [("theta_x_deg", theta_x_deg), ("theta_y_deg", theta_y_deg)] {
+                for (key, range) in [("theta_x_deg", *theta_x_deg), ("theta_y_deg", *theta_y_deg)] {
                     for (k, t) in range.iter().enumerate() {
                         let field = format!("{}[{k}]", f(key));
                         let t = finite(&field, *t)?;
@@ -560,6 +752,32 @@ fn build_sensors(
                     }
                 }
             }
+            SensorSpec::FarArc {
+                center,
+                axis,
+                angles_deg,
+                n,
+            } => {
+                let (c, a) = rotation(&f, "center", center, axis, dim)?;
+                for (k, t) in angles_deg.iter().enumerate() {
+                    finite(format!("{}[{k}]", f("angles_deg")), *t)?;
+                }
+                if *n == 0 || *n > MAX_ENDPOINTS {
+                    return Err(bad(
+                        f("n"),
+                        format!("must be in 1..={MAX_ENDPOINTS} (got {n})"),
+                    ));
+                }
+                let [first, last] = *angles_deg;
+                for k in 0..*n {
+                    let t = first + (last - first) * k as f64 / (*n - 1).max(1) as f64;
+                    let v = rotated(c, a, t, dim);
+                    out.push(Sensor::FarField { direction: v });
+                    desc.push(json!({
+                        "entry": i, "type": "far", "direction": arr(v), "k": k, "angle_deg": t,
+                    }));
+                }
+            }
             SensorSpec::PointGrid {
                 origin,
                 step_x,
@@ -567,9 +785,9 @@ fn build_sensors(
                 nx,
                 ny,
             } => {
-                let o = vec3(&f("origin"), *origin)?;
-                let sx = vec3(&f("step_x"), *step_x)?;
-                let sy = vec3(&f("step_y"), *step_y)?;
+                let o = self::position(&f("origin"), *origin, dim)?;
+                let sx = self::position(&f("step_x"), *step_x, dim)?;
+                let sy = self::position(&f("step_y"), *step_y, dim)?;
                 grid_counts(&e, *nx, *ny)?;
                 if *nx > 1 && sx == DVec3::ZERO {
                     return Err(bad(f("step_x"), "must be non-zero when nx > 1"));
@@ -631,12 +849,22 @@ fn build(
         .unwrap_or_else(|| default_name.to_string());
     check_name(&name)?;
     file.name = Some(name.clone());
+    let dim = match file.dimension {
+        3 => Dimension::Three,
+        2 => Dimension::Two,
+        d => {
+            return Err(bad(
+                "dimension",
+                format!("must be 3 (the default) or 2 (flatland) (got {d})"),
+            ));
+        }
+    };
     let wavelength = positive("wavelength", file.wavelength)?;
-    let medium = build_medium(&file.medium)?;
-    let phase = build_phase(&file.phase, base)?;
+    let medium = build_medium(&file.medium, dim)?;
+    let phase = build_phase(&file.phase, base, dim)?;
     let bounds = *medium.bounds();
-    let (sources, source_desc) = build_sources(&file.sources, &bounds)?;
-    let (sensors, sensor_desc, grid) = build_sensors(&file.sensors, &bounds)?;
+    let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
+    let (sensors, sensor_desc, grid) = build_sensors(&mut file.sensors, &bounds)?;
     let (pairs, all_pairs) = match &file.pairs {
         None => {
             let j = sources.len().saturating_mul(sensors.len());
@@ -714,7 +942,7 @@ fn build(
         FirstVertexSpec::Uniform => FirstVertex::Uniform,
         FirstVertexSpec::ExponentialDepth => {
             let direction = match r.first_vertex_direction {
-                Some(d) => direction("render.first_vertex_direction", d)?,
+                Some(d) => flat_direction("render.first_vertex_direction", d, dim)?,
                 None => plane.ok_or_else(|| {
                     bad(
                         "render.first_vertex",
@@ -730,7 +958,7 @@ fn build(
         FirstDirectionSpec::Uniform => FirstDirection::Uniform,
         FirstDirectionSpec::Phase => {
             let axis = match r.first_direction_axis {
-                Some(d) => direction("render.first_direction_axis", d)?,
+                Some(d) => flat_direction("render.first_direction_axis", d, dim)?,
                 None => plane.ok_or_else(|| {
                     bad(
                         "render.first_direction",
@@ -803,12 +1031,33 @@ impl Loaded {
         &self.file.output.dir
     }
 
+    /// 3D or flatland.
+    pub fn dimension(&self) -> Dimension {
+        self.scene.medium().bounds().dimension()
+    }
+
+    /// The shape of one value per pair: `(n_sources, n_sensors)` with all pairs, else `(J,)`.
+    pub fn pair_shape(&self) -> Vec<usize> {
+        if self.all_pairs {
+            vec![self.n_sources(), self.n_sensors()]
+        } else {
+            vec![self.pairs()]
+        }
+    }
+
+    /// The sensor image when per-source PNG images are wanted and possible (PNGs on, all pairs,
+    /// the sensors one grid).
+    pub fn png_grid(&self) -> Option<Grid> {
+        self.grid.filter(|_| self.file.output.png && self.all_pairs)
+    }
+
     /// Quantities derived from the scene (for `check` and the JSON sidecars).
     pub fn derived(&self) -> Value {
         let m = self.scene.medium();
         let size = m.bounds().size();
         let lambda = self.scene.wavelength();
         json!({
+            "dimension": self.dimension().count(),
             "sigma_s": m.scattering(),
             "sigma_a": m.absorption(),
             "sigma_t": m.extinction(),
@@ -908,6 +1157,126 @@ ny = 1
         assert!((direction.x.atan2(direction.z).to_degrees() + 10.0).abs() < 1e-9);
         assert!(l.grid.is_none());
         assert_eq!(l.name, "t");
+    }
+
+    fn far_directions(l: &Loaded) -> Vec<DVec3> {
+        l.scene
+            .sensors()
+            .iter()
+            .map(|s| match *s {
+                Sensor::FarField { direction } => direction,
+                Sensor::Point { .. } => panic!("a point sensor"),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn far_arc_expands_in_angle_order() {
+        // 3D defaults: +z rotated about +y, so positive angles lean towards +x.
+        let text = OK.replace(
+            "type = \"far_grid\"\ntheta_x_deg = [-10, 10]\ntheta_y_deg = [0, 0]\nnx = 3\nny = 1",
+            "type = \"far_arc\"\nangles_deg = [-30, 60]\nn = 4\n[[sensors]]\n\
+             type = \"far_arc\"\ncenter = [1, 0, 0]\naxis = [0, 0, 2]\n\
+             angles_deg = [45, 90]\nn = 1",
+        );
+        let l = load(&text).unwrap();
+        let d = far_directions(&l);
+        assert_eq!(d.len(), 5);
+        for (k, deg) in [-30.0f64, 0.0, 30.0, 60.0].into_iter().enumerate() {
+            let (s, c) = deg.to_radians().sin_cos();
+            assert!(
+                (d[k] - DVec3::new(s, 0.0, c)).length() < 1e-12,
+                "{k}: {}",
+                d[k]
+            );
+            assert_eq!(l.sensors[k]["angle_deg"], deg, "{k}");
+            assert_eq!(l.sensors[k]["k"], k);
+        }
+        // n = 1 gives the first angle, about the given (normalised) axis.
+        let h = 0.5f64.sqrt();
+        assert!((d[4] - DVec3::new(h, h, 0.0)).length() < 1e-12, "{}", d[4]);
+        assert_eq!(l.sensors[4]["angle_deg"], 45.0);
+        // The defaults are filled in for the sidecar.
+        let SensorSpec::FarArc { center, axis, .. } = &l.file.sensors[0] else {
+            panic!()
+        };
+        assert_eq!(
+            (*center, *axis),
+            (Some([0.0, 0.0, 1.0]), Some([0.0, 1.0, 0.0]))
+        );
+    }
+
+    #[test]
+    fn flatland_generators_default_to_the_plane() {
+        let text = r#"
+dimension = 2
+wavelength = 1.0
+[medium]
+size = [10, 6, 0]
+center = [1, 0, 0]
+mean_free_path = 5
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0, 90]
+[[sensors]]
+type = "far_arc"
+angles_deg = [0, 270]
+n = 4
+"#;
+        let l = load(text).unwrap();
+        assert_eq!(l.dimension(), Dimension::Two);
+        let b = l.scene.medium().bounds();
+        assert_eq!(
+            (b.min().to_array(), b.max().to_array()),
+            ([-4.0, -3.0, 0.0], [6.0, 3.0, 0.0])
+        );
+        assert!(matches!(l.scene.phase(), Phase::FlatIsotropic));
+        // +y rotated counter-clockwise about +z: +y, -x, -y, +x; exactly z = 0.
+        let want = [DVec3::Y, -DVec3::X, -DVec3::Y, DVec3::X];
+        for (v, w) in far_directions(&l).iter().zip(want) {
+            assert!((*v - w).length() < 1e-12 && v.z == 0.0, "{v} vs {w}");
+        }
+        let Source::PlaneWave { direction } = l.scene.sources()[1] else {
+            panic!()
+        };
+        assert!((direction + DVec3::X).length() < 1e-12 && direction.z == 0.0);
+        assert_eq!(l.pair_shape(), vec![2, 4]);
+    }
+
+    #[test]
+    fn flatland_tables_take_signed_angles_and_synonyms() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("a.csv"),
+            "theta_deg,re_s,im_s\n0,1,0\n90,2,0.5\n180,0.5,0\n270,0.2,0\n360,1,0\n",
+        )
+        .unwrap();
+        let text = r#"
+dimension = 2
+wavelength = 1.0
+[medium]
+size = [10, 6, 0]
+mean_free_path = 5
+[phase]
+type = "tabulated"
+file = "a.csv"
+[[sources]]
+type = "plane"
+direction = [0, 1, 0]
+[[sensors]]
+type = "far"
+direction = [1, 0, 0]
+"#;
+        let l = load_str(text, "t.toml", dir.path(), "t", &Overrides::default()).unwrap();
+        let Phase::FlatTabulated(t) = l.scene.phase() else {
+            panic!("{:?}", l.scene.phase())
+        };
+        // Asymmetric: +90 degrees (counter-clockwise) is the bright side.
+        let inc = DVec3::X;
+        assert!(
+            t.amplitude_between(inc, DVec3::Y).norm()
+                > 5.0 * t.amplitude_between(inc, -DVec3::Y).norm()
+        );
     }
 
     #[test]

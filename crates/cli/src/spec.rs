@@ -15,6 +15,9 @@ pub struct SceneFile {
     /// Prefix of the output files; defaults to the scene file's stem.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// 3 (the world) or 2 (flatland: every position and direction in the plane `z = 0`).
+    #[serde(default = "three")]
+    pub dimension: i64,
     /// Wavelength, in the scene's length unit.
     pub wavelength: f64,
     /// The medium.
@@ -39,7 +42,12 @@ pub struct SceneFile {
     pub output: OutputSpec,
 }
 
-/// A homogeneous box, given by `sigma_s` (+ `sigma_a`) or by `mean_free_path` (+ `albedo`).
+fn three() -> i64 {
+    3
+}
+
+/// A homogeneous box (a rectangle in flatland, where `size[2]` and `center[2]` are 0), given by
+/// `sigma_s` (+ `sigma_a`) or by `mean_free_path` (+ `albedo`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MediumSpec {
@@ -74,9 +82,10 @@ pub enum PhaseSpec {
         g: f64,
     },
     /// A tabulated complex amplitude from a CSV file (header `theta_rad,re,im`,
-    /// `theta_deg,re,im` or `mu,re,im`), relative to the scene file's directory.
+    /// `theta_deg,re,im` or, in 3D only, `mu,re,im`), relative to the scene file's directory;
+    /// over `[0, pi]` in 3D and over the signed angle in `[0, 2 pi]` in flatland.
     Tabulated {
-        /// The CSV file.
+        /// The CSV file, or `embedded:NAME` for a table embedded in the binary.
         file: PathBuf,
     },
 }
@@ -89,10 +98,6 @@ impl Default for PhaseSpec {
 
 fn z_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
-}
-
-fn y_axis() -> [f64; 3] {
-    [0.0, 1.0, 0.0]
 }
 
 /// One entry of `[[sources]]`.
@@ -111,12 +116,13 @@ pub enum SourceSpec {
     },
     /// Plane waves: `direction` rotated about `axis` by each angle of `tilts_deg`.
     PlaneTilts {
-        /// The untilted propagation direction (default `+z`).
-        #[serde(default = "z_axis")]
-        direction: [f64; 3],
-        /// Rotation axis, right-hand rule (default `+y`: positive tilts lean `+z` towards `+x`).
-        #[serde(default = "y_axis")]
-        axis: [f64; 3],
+        /// The untilted propagation direction (default `+z`; `+y` in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        direction: Option<[f64; 3]>,
+        /// Rotation axis, right-hand rule (default `+y`: positive tilts lean `+z` towards `+x`;
+        /// in flatland `+z` (the default) or `-z`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
         /// Tilt angles in degrees.
         tilts_deg: Vec<f64>,
     },
@@ -151,6 +157,21 @@ pub enum SensorSpec {
         nx: usize,
         /// Number of rows.
         ny: usize,
+    },
+    /// `n` far-field directions: `center` rotated about `axis` (right-hand rule) by angles
+    /// uniform over the inclusive range `angles_deg` (the first angle when `n = 1`).
+    FarArc {
+        /// The direction at angle 0 (default `+z`; `+y` in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        center: Option<[f64; 3]>,
+        /// Rotation axis, not parallel to `center` (default `+y`; `+z` in flatland, where it
+        /// must be `+z` or `-z`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// `[first, last]` rotation angle, degrees.
+        angles_deg: [f64; 2],
+        /// Number of directions (at least 1).
+        n: usize,
     },
     /// An `ny x nx` grid of points `origin + ix step_x + iy step_y`. Row-major, `iy` slow.
     PointGrid {

@@ -84,31 +84,46 @@ const SOURCES: &str = "[[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 1.0
 const SENSORS: &str = "[[sensors]]\ntype = \"far\"\ndirection = [0.0, 0.0, 1.0]";
 const RENDER: &str = "paths = 100";
 
+const TOP_2D: &str = "dimension = 2\nwavelength = 1.0";
+const MEDIUM_2D: &str = "size = [4.0, 4.0, 0.0]\nmean_free_path = 2.0";
+const SOURCES_2D: &str = "[[sources]]\ntype = \"plane\"\ndirection = [0.0, 1.0, 0.0]";
+const SENSORS_2D: &str = "[[sensors]]\ntype = \"far\"\ndirection = [0.0, 1.0, 0.0]";
+
+/// The parts of a minimal valid scene, in the order of [`scene`]'s arguments.
+type Parts = [&'static str; 6];
+const VALID_3D: Parts = [TOP, MEDIUM, PHASE, SOURCES, SENSORS, RENDER];
+const VALID_2D: Parts = [TOP_2D, MEDIUM_2D, PHASE, SOURCES_2D, SENSORS_2D, RENDER];
+
+/// One editor per part of `base`: `editors(base)[i](text)` is the scene with part `i` replaced.
+fn editors(base: Parts) -> [impl Fn(&str) -> String; 6] {
+    std::array::from_fn(|i| {
+        move |text: &str| {
+            let mut p: [&str; 6] = base;
+            p[i] = text;
+            scene(p[0], p[1], p[2], p[3], p[4], p[5])
+        }
+    })
+}
+
 #[test]
-fn the_base_of_the_malformed_cases_is_valid() {
+fn the_bases_of_the_malformed_cases_are_valid() {
     let dir = tempfile::tempdir().unwrap();
-    let p = write(
-        dir.path(),
-        "ok.toml",
-        &scene(TOP, MEDIUM, PHASE, SOURCES, SENSORS, RENDER),
-    );
-    let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("pairs J              1"),
-        "{}",
-        stdout(&o)
-    );
+    for (base, dimension) in [(VALID_3D, "3"), (VALID_2D, "2 (flatland")] {
+        let p = write(dir.path(), "ok.toml", &editors(base)[0](base[0]));
+        let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = stdout(&o);
+        assert!(out.contains("pairs J              1"), "{out}");
+        assert!(
+            out.contains(&format!("dimension            {dimension}")),
+            "{out}"
+        );
+    }
 }
 
 #[test]
 fn malformed_scenes_name_the_field_and_exit_with_2() {
-    let m = |medium: &str| scene(TOP, medium, PHASE, SOURCES, SENSORS, RENDER);
-    let p = |phase: &str| scene(TOP, MEDIUM, phase, SOURCES, SENSORS, RENDER);
-    let so = |sources: &str| scene(TOP, MEDIUM, PHASE, sources, SENSORS, RENDER);
-    let se = |sensors: &str| scene(TOP, MEDIUM, PHASE, SOURCES, sensors, RENDER);
-    let r = |render: &str| scene(TOP, MEDIUM, PHASE, SOURCES, SENSORS, render);
-    let t = |top: &str| scene(top, MEDIUM, PHASE, SOURCES, SENSORS, RENDER);
+    let [t, m, p, so, se, r] = editors(VALID_3D);
     let cases: Vec<(&str, String, &str)> = vec![
         (
             "nan wavelength",
@@ -342,14 +357,21 @@ fn malformed_scenes_name_the_field_and_exit_with_2() {
         ),
     ];
     assert!(cases.len() >= 15);
-    let dir = tempfile::tempdir().unwrap();
-    write(
-        dir.path(),
-        "bad.csv",
-        "theta_deg,re,im\n0,1,0\n90,one,0\n180,1,0\n",
+    expect_input_errors(
+        &cases,
+        &[("bad.csv", "theta_deg,re,im\n0,1,0\n90,one,0\n180,1,0\n")],
     );
+}
+
+/// Runs `speckle check` on every `(what, scene text, expected stderr excerpt)` case, next to the
+/// given `(name, text)` files: each must exit with 2, name the field, not panic, write nothing.
+fn expect_input_errors(cases: &[(&str, String, &str)], files: &[(&str, &str)]) {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in files {
+        write(dir.path(), name, text);
+    }
     let mut failures = Vec::new();
-    for (what, text, expected) in &cases {
+    for (what, text, expected) in cases {
         let path = write(dir.path(), "case.toml", text);
         let o = speckle(dir.path(), &["check", path.to_str().unwrap()]);
         let err = stderr(&o);
@@ -368,6 +390,239 @@ fn malformed_scenes_name_the_field_and_exit_with_2() {
 }
 
 #[test]
+fn malformed_flatland_scenes_name_the_field_and_exit_with_2() {
+    let [t, m, p, so, se, r] = editors(VALID_2D);
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "dimension 4",
+            t("dimension = 4\nwavelength = 1.0"),
+            "dimension: must be 3 (the default) or 2",
+        ),
+        (
+            "dimension 0",
+            t("dimension = 0\nwavelength = 1.0"),
+            "dimension: must be",
+        ),
+        (
+            "fractional dimension",
+            t("dimension = 2.5\nwavelength = 1.0"),
+            "dimension",
+        ),
+        (
+            "string dimension",
+            t("dimension = \"2\"\nwavelength = 1.0"),
+            "dimension",
+        ),
+        (
+            "flat medium in 3D",
+            t("dimension = 3\nwavelength = 1.0"),
+            "medium.size[2]: must be finite and > 0 (got 0) (for flatland, set dimension = 2)",
+        ),
+        (
+            "thick medium",
+            m("size = [4.0, 4.0, 1.0]\nmean_free_path = 2.0"),
+            "medium.size[2]: must be 0 in flatland",
+        ),
+        (
+            "nan medium thickness",
+            m("size = [4.0, 4.0, nan]\nmean_free_path = 2.0"),
+            "medium.size[2]: must be finite",
+        ),
+        (
+            "zero medium width",
+            m("size = [0.0, 4.0, 0.0]\nmean_free_path = 2.0"),
+            "medium.size[0]: must be finite and > 0",
+        ),
+        (
+            "medium centre off the plane",
+            m("size = [4.0, 4.0, 0.0]\ncenter = [0.0, 0.0, 1.0]\nmean_free_path = 2.0"),
+            "medium.center[2]: must be 0 in flatland",
+        ),
+        (
+            "plane wave off the plane",
+            so("[[sources]]\ntype = \"plane\"\ndirection = [0.0, 1.0, 0.1]"),
+            "sources[0].direction[2]: must be 0 in flatland",
+        ),
+        (
+            "point source off the plane",
+            so(&format!(
+                "{SOURCES_2D}\n[[sources]]\ntype = \"point\"\nposition = [0.0, -9.0, 1.0]"
+            )),
+            "sources[1].position[2]: must be 0 in flatland",
+        ),
+        (
+            "point source inside the rectangle",
+            so("[[sources]]\ntype = \"point\"\nposition = [0.0, 1.0, 0.0]"),
+            "sources[0].position",
+        ),
+        (
+            "tilted plane waves off the plane",
+            so("[[sources]]\ntype = \"plane_tilts\"\ndirection = [0, 0, 1]\ntilts_deg = [0]"),
+            "sources[0].direction[2]: must be 0 in flatland",
+        ),
+        (
+            "tilt axis in the plane",
+            so("[[sources]]\ntype = \"plane_tilts\"\naxis = [0, 1, 0]\ntilts_deg = [0]"),
+            "sources[0].axis: must be [0, 0, 1] or [0, 0, -1] in flatland",
+        ),
+        (
+            "far sensor off the plane",
+            se("[[sensors]]\ntype = \"far\"\ndirection = [1.0, 0.0, -1.0]"),
+            "sensors[0].direction[2]: must be 0 in flatland",
+        ),
+        (
+            "point sensor off the plane",
+            se("[[sensors]]\ntype = \"point\"\nposition = [0.0, 9.0, 0.5]"),
+            "sensors[0].position[2]",
+        ),
+        (
+            "point grid origin off the plane",
+            se("[[sensors]]\ntype = \"point_grid\"\norigin = [0, 9, 1]\n\
+                step_x = [1, 0, 0]\nstep_y = [0, 1, 0]\nnx = 2\nny = 2"),
+            "sensors[0].origin[2]",
+        ),
+        (
+            "point grid step off the plane",
+            se("[[sensors]]\ntype = \"point_grid\"\norigin = [0, 9, 0]\n\
+                step_x = [1, 0, 0]\nstep_y = [0, 1, 0.5]\nnx = 2\nny = 2"),
+            "sensors[0].step_y[2]",
+        ),
+        (
+            "far grid in flatland",
+            se("[[sensors]]\ntype = \"far_grid\"\ncenter = [0, 1, 0]\n\
+                theta_x_deg = [-5, 5]\ntheta_y_deg = [0, 0]\nnx = 3\nny = 1"),
+            "sensors[0]: far_grid is an image of 3D directions and has no flatland form; use \
+             far_arc",
+        ),
+        (
+            "far arc centre off the plane",
+            se("[[sensors]]\ntype = \"far_arc\"\ncenter = [0, 1, 1]\n\
+                angles_deg = [0, 90]\nn = 3"),
+            "sensors[0].center[2]: must be 0 in flatland",
+        ),
+        (
+            "far arc axis in the plane",
+            se("[[sensors]]\ntype = \"far_arc\"\naxis = [1, 0, 0]\nangles_deg = [0, 90]\nn = 3"),
+            "sensors[0].axis: must be [0, 0, 1] or [0, 0, -1]",
+        ),
+        (
+            "zero far arc axis",
+            se("[[sensors]]\ntype = \"far_arc\"\naxis = [0, 0, 0]\nangles_deg = [0, 90]\nn = 3"),
+            "sensors[0].axis: must be a non-zero vector",
+        ),
+        (
+            "empty far arc",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0, 90]\nn = 0"),
+            "sensors[0].n: must be in 1..=",
+        ),
+        (
+            "negative far arc count",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0, 90]\nn = -2"),
+            "sensors[0].n: invalid value: integer `-2`",
+        ),
+        (
+            "nan far arc angle",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0, nan]\nn = 3"),
+            "sensors[0].angles_deg[1]: must be finite",
+        ),
+        (
+            "one far arc angle",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0]\nn = 3"),
+            "sensors[0].angles_deg: invalid length 1",
+        ),
+        (
+            "far arc without a count",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0, 90]"),
+            "missing field `n`",
+        ),
+        (
+            "misspelt far arc key",
+            se("[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0, 90]\nn = 3\ncentre = [0, 1, 0]"),
+            "sensors[0].centre",
+        ),
+        (
+            "strategy direction off the plane",
+            r("first_vertex = \"exponential_depth\"\nfirst_vertex_direction = [0, 1, 1]"),
+            "render.first_vertex_direction[2]: must be 0 in flatland",
+        ),
+        (
+            "strategy axis off the plane",
+            r("first_direction = \"phase\"\nfirst_direction_axis = [0, 0, 1]"),
+            "render.first_direction_axis[2]: must be 0 in flatland",
+        ),
+        (
+            "mu table in flatland",
+            p("type = \"tabulated\"\nfile = \"mu.csv\""),
+            "phase.file: ",
+        ),
+        (
+            "mu table in flatland says why",
+            p("type = \"tabulated\"\nfile = \"mu.csv\""),
+            "cannot describe a flatland amplitude",
+        ),
+        (
+            "flatland table beyond 2 pi",
+            p("type = \"tabulated\"\nfile = \"wide.csv\""),
+            "phase.file: ",
+        ),
+        (
+            "flatland table beyond 2 pi says where",
+            p("type = \"tabulated\"\nfile = \"wide.csv\""),
+            "row 3 has an angle outside [0, 2 pi] (7 theta_rad)",
+        ),
+        (
+            "unknown embedded table",
+            p("type = \"tabulated\"\nfile = \"embedded:nope.csv\""),
+            "phase.file: no embedded table called \"nope.csv\"",
+        ),
+    ];
+    let wide = "theta_rad,re,im\n0,1,0\n3,1,0\n7,1,0\n";
+    expect_input_errors(
+        &cases,
+        &[("mu.csv", "mu,re,im\n-1,1,0\n1,1,0\n"), ("wide.csv", wide)],
+    );
+}
+
+#[test]
+fn far_arc_and_tagged_tables_name_their_keys_in_3d() {
+    let [_, _, p, so, se, _] = editors(VALID_3D);
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "string g",
+            p("type = \"hg\"\ng = \"0.5\""),
+            "phase.g: invalid type",
+        ),
+        (
+            "negative grid count",
+            se("[[sensors]]\ntype = \"far_grid\"\ntheta_x_deg = [-1, 1]\n\
+                theta_y_deg = [0, 0]\nnx = 3\nny = -1"),
+            "sensors[0].ny: invalid value",
+        ),
+        (
+            "string tilt",
+            so("[[sources]]\ntype = \"plane_tilts\"\ntilts_deg = [\"1\"]"),
+            "sources[0].tilts_deg: invalid type",
+        ),
+        (
+            "axis along the centre",
+            se("[[sensors]]\ntype = \"far_arc\"\naxis = [0, 0, -3]\nangles_deg = [0, 9]\nn = 2"),
+            "sensors[0].axis: must not be parallel to the center",
+        ),
+        (
+            "zero centre",
+            se("[[sensors]]\ntype = \"far_arc\"\ncenter = [0, 0, 0]\nangles_deg = [0, 9]\nn = 2"),
+            "sensors[0].center: must be a non-zero vector",
+        ),
+        (
+            "tilt axis along the direction",
+            so("[[sources]]\ntype = \"plane_tilts\"\naxis = [0, 0, 1]\ntilts_deg = [0]"),
+            "sources[0].axis: must not be parallel",
+        ),
+    ];
+    expect_input_errors(&cases, &[]);
+}
+
+#[test]
 fn bad_command_lines_exit_with_2() {
     let dir = tempfile::tempdir().unwrap();
     let tiny = write(dir.path(), "tiny.toml", TINY);
@@ -375,6 +630,7 @@ fn bad_command_lines_exit_with_2() {
     for (args, expected) in [
         (vec!["check", "missing.toml"], "cannot read the scene file"),
         (vec!["covariance", tiny, "--paths", "1"], "render.paths"),
+        (vec!["intensity", tiny, "--paths", "1"], "render.paths"),
         (vec!["covariance", tiny, "--threads", "0"], "--threads"),
         (
             vec!["fields", tiny, "--realizations", "0"],
@@ -438,23 +694,25 @@ fn npy_header(bytes: &[u8]) -> (String, bool, Vec<usize>, usize) {
     (descr, fortran, shape, offset)
 }
 
-fn load_npy(path: &Path) -> (Vec<usize>, Vec<(f64, f64)>) {
+/// The shape and the float64 numbers of a `.npy` file of dtype `descr` (`<c16`: re, im, ...).
+fn load_npy_as(path: &Path, descr: &str) -> (Vec<usize>, Vec<f64>) {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let (descr, fortran, shape, offset) = npy_header(&bytes);
-    assert_eq!(descr, "<c16");
+    let (found, fortran, shape, offset) = npy_header(&bytes);
+    assert_eq!(found, descr, "{}", path.display());
     assert!(!fortran);
+    let per = if descr == "<c16" { 2 } else { 1 };
     let n: usize = shape.iter().product();
-    assert_eq!(bytes.len() - offset, 16 * n, "{}", path.display());
+    assert_eq!(bytes.len() - offset, 8 * per * n, "{}", path.display());
     let data = bytes[offset..]
-        .chunks_exact(16)
-        .map(|c| {
-            (
-                f64::from_le_bytes(c[..8].try_into().unwrap()),
-                f64::from_le_bytes(c[8..].try_into().unwrap()),
-            )
-        })
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
         .collect();
     (shape, data)
+}
+
+fn load_npy(path: &Path) -> (Vec<usize>, Vec<(f64, f64)>) {
+    let (shape, data) = load_npy_as(path, "<c16");
+    (shape, data.chunks_exact(2).map(|c| (c[0], c[1])).collect())
 }
 
 fn load_json(path: &Path) -> serde_json::Value {
@@ -588,6 +846,7 @@ fn a_cancelled_render_writes_nothing() {
     let tiny = tiny.to_str().unwrap();
     for args in [
         vec!["covariance", tiny, "--paths", "2000000"],
+        vec!["intensity", tiny, "--paths", "20000000"],
         vec!["single", tiny, "--paths", "20000000"],
         vec!["fields", tiny, "--realizations", "64"],
     ] {
@@ -649,13 +908,178 @@ fn every_example_prints_and_checks() {
     for name in &names {
         let o = speckle(dir.path(), &["example", name]);
         assert!(o.status.success());
-        // The embedded text is the file in scenes/.
-        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes")
-            .join(format!("{name}.toml"));
+        // The embedded text is the file in scenes/ (or in crates/cli/scenes/).
+        let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let file = [crate_dir.join("../../scenes"), crate_dir.join("scenes")]
+            .iter()
+            .map(|d| d.join(format!("{name}.toml")))
+            .find(|f| f.exists())
+            .unwrap_or_else(|| panic!("no scene file for the example {name}"));
         assert_eq!(stdout(&o), std::fs::read_to_string(&file).unwrap());
         let p = write(dir.path(), &format!("{name}.toml"), &stdout(&o));
         let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
     }
+}
+
+/// A tiny flatland scene: 2 tilted plane waves (default +y about +z), a 5-direction far arc with
+/// default centre and axis, and a point sensor (J = 12); an asymmetric table with the mu-diff
+/// header names.
+const TINY_2D: &str = r#"
+name = "flat"
+dimension = 2
+wavelength = 1.0
+
+[medium]
+size = [6.0, 6.0, 0.0]
+mean_free_path = 3.0
+albedo = 0.9
+
+[phase]
+type = "tabulated"
+file = "amp.csv"
+
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0.0, 10.0]
+
+[[sensors]]
+type = "far_arc"
+angles_deg = [90.0, 270.0]
+n = 5
+
+[[sensors]]
+type = "point"
+position = [0.0, 10.0, 0.0]
+
+[render]
+paths = 3000
+seed = 3
+
+[output]
+dir = "res"
+"#;
+
+#[test]
+fn flatland_intensity_writes_float64_arrays_and_far_arc_angles() {
+    let dir = tempfile::tempdir().unwrap();
+    write(
+        dir.path(),
+        "amp.csv",
+        "theta_rad,re_s,im_s\n0,1,0\n1.5,0.8,0.3\n3.14159,0.3,0\n4.5,0.2,-0.1\n",
+    );
+    let p = write(dir.path(), "flat.toml", TINY_2D);
+    let p = p.to_str().unwrap();
+    let o = speckle(dir.path(), &["intensity", p, "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let (shape, intensity) = load_npy_as(&res.join("flat_intensity.npy"), "<f8");
+    assert_eq!(shape, vec![2, 6]);
+    assert!(
+        intensity.iter().all(|v| v.is_finite() && *v > 0.0),
+        "{intensity:?}"
+    );
+    let (shape, se) = load_npy_as(&res.join("flat_intensity_se.npy"), "<f8");
+    assert_eq!(shape, vec![2, 6]);
+    assert!(se.iter().zip(&intensity).all(|(s, v)| *s > 0.0 && s < v));
+    let (shape, single) = load_npy_as(&res.join("flat_intensity_single.npy"), "<f8");
+    assert_eq!(shape, vec![2, 6]);
+    assert!(single.iter().all(|v| v.is_finite()));
+
+    let meta = load_json(&res.join("flat_intensity.json"));
+    assert_eq!(meta["command"], "intensity");
+    assert_eq!(meta["derived"]["dimension"], 2);
+    assert_eq!(meta["files"]["intensity"], "flat_intensity.npy");
+    assert_eq!(meta["render"]["paths"], 3000);
+    assert!(
+        meta["units"]["far_field_sensor"]
+            .as_str()
+            .unwrap()
+            .contains("sqrt(R)")
+    );
+    // The defaults are recorded: +y tilted about +z.
+    assert_eq!(
+        meta["scene"]["sources"][0]["direction"],
+        serde_json::json!([0.0, 1.0, 0.0])
+    );
+    assert_eq!(
+        meta["scene"]["sensors"][0]["axis"],
+        serde_json::json!([0.0, 0.0, 1.0])
+    );
+    let tilted = &meta["sources"][1]["direction"];
+    let a = 10f64.to_radians();
+    assert!(
+        (tilted[0].as_f64().unwrap() + a.sin()).abs() < 1e-12,
+        "{tilted}"
+    );
+    // The arc: +y rotated counter-clockwise by 90, 135, ..., 270 degrees, then the point.
+    let sensors = meta["sensors"].as_array().unwrap();
+    assert_eq!(sensors.len(), 6);
+    for (k, s) in sensors[..5].iter().enumerate() {
+        let deg = 90.0 + 45.0 * k as f64;
+        assert_eq!(s["angle_deg"], deg, "{s}");
+        assert_eq!(s["k"], k);
+        let d: Vec<f64> = serde_json::from_value(s["direction"].clone()).unwrap();
+        let (sin, cos) = deg.to_radians().sin_cos();
+        assert!(
+            (d[0] + sin).abs() < 1e-12 && (d[1] - cos).abs() < 1e-12,
+            "{s}"
+        );
+        assert_eq!(d[2], 0.0);
+    }
+    assert_eq!(sensors[5]["type"], "point");
+
+    // The same seed gives the covariance's diagonal exactly.
+    let o = speckle(
+        dir.path(),
+        &["covariance", p, "-q", "--out", "c", "--no-png"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, cov) = load_npy(&dir.path().join("c/flat.cov.npy"));
+    for (j, v) in intensity.iter().enumerate() {
+        assert_eq!(cov[j * 12 + j].0, *v, "pair {j}");
+    }
+
+    // Explicit pairs give a (J,) array.
+    let explicit = TINY_2D.replace(
+        "wavelength = 1.0",
+        "wavelength = 1.0\npairs = [[0, 0], [1, 5], [1, 2]]",
+    );
+    let p = write(dir.path(), "explicit.toml", &explicit);
+    let o = speckle(
+        dir.path(),
+        &[
+            "intensity",
+            p.to_str().unwrap(),
+            "-q",
+            "--out",
+            "e",
+            "--paths",
+            "500",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy_as(&dir.path().join("e/flat_intensity_se.npy"), "<f8");
+    assert_eq!(shape, vec![3]);
+}
+
+#[test]
+fn intensity_of_a_sensor_grid_writes_an_image_per_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let o = speckle(
+        dir.path(),
+        &["intensity", tiny.to_str().unwrap(), "-q", "--paths", "500"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let (shape, _) = load_npy_as(&res.join("tiny_intensity.npy"), "<f8");
+    assert_eq!(shape, vec![2, 6]);
+    for s in 0..2 {
+        let png = std::fs::read(res.join(format!("tiny_intensity.s{s}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    let meta = load_json(&res.join("tiny_intensity.json"));
+    assert_eq!(meta["derived"]["dimension"], 3);
+    assert_eq!(meta["files"]["png"]["files"].as_array().unwrap().len(), 2);
 }
