@@ -3,8 +3,9 @@
 //! Reads a TOML scene (a homogeneous box of scatterers, a phase function, sources and sensors; in
 //! 3D or in flatland), renders the speckle covariance, intensity, single-scattering covariance,
 //! speckle mean or field realizations with the estimators of `speckle::estimators` (Bar et al.
-//! 2019), and writes NumPy `.npy` arrays (complex128, float64 for intensities), a JSON sidecar
-//! and PNG previews.
+//! 2019), or the exact reference of `speckle::wave` (Foldy-Lax, averaged over configurations),
+//! and writes NumPy `.npy` arrays (complex128, float64 for intensities), a JSON sidecar and PNG
+//! previews.
 //!
 //! Design decision: this binary owns argument parsing, scene-file validation and output; the
 //! library crates never see a file or a terminal. Every bad input is reported with the path of
@@ -99,6 +100,14 @@ enum Command {
     Single(SingleArgs),
     /// Compute the speckle mean of every pair (closed form).
     Mean(MeanArgs),
+    /// Exact reference: solve the wave equation (Foldy-Lax) for random configurations of point
+    /// scatterers; their fields, mean and covariance.
+    ///
+    /// Models resonant, lossless, isotropic point scatterers only (isotropic phase, sigma_a = 0),
+    /// N = sigma_s |V| / c_s of them per configuration on average, at O(N^3) time and 16 N^2
+    /// bytes per configuration. The outputs `<name>.wave_*.npy` have the pair order and layout
+    /// of `speckle covariance`, for a direct comparison.
+    Wave(WaveArgs),
     /// Parse and validate a scene and print a summary; renders nothing.
     Check(CheckArgs),
     /// Print an embedded example scene (TOML) to stdout.
@@ -120,10 +129,11 @@ struct Common {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
-    /// No progress bar.
+    /// No progress bar (nor the cost estimate of `wave`).
     #[arg(long, short)]
     quiet: bool,
-    /// Testing aid: behave as if ctrl-c was pressed once this many paths are done.
+    /// Testing aid: behave as if ctrl-c was pressed once this many paths (configurations for
+    /// `wave`) are done.
     #[arg(long, hide = true, value_name = "PATHS")]
     cancel_after_paths: Option<u64>,
 }
@@ -150,6 +160,18 @@ struct SingleArgs {
     /// Number of first vertices (replaces `render.paths`).
     #[arg(long, value_name = "N")]
     paths: Option<u64>,
+    /// Write no PNG.
+    #[arg(long)]
+    no_png: bool,
+}
+
+#[derive(Debug, Args)]
+struct WaveArgs {
+    #[command(flatten)]
+    common: Common,
+    /// Number of scatterer configurations (replaces `render.configurations`).
+    #[arg(long, value_name = "R")]
+    configurations: Option<usize>,
     /// Write no PNG.
     #[arg(long)]
     no_png: bool,
@@ -280,6 +302,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let l = load(&a.common.scene, &o)?;
             commands::single(&l, a.common.run()?)?;
+        }
+        Command::Wave(a) => {
+            let o = Overrides {
+                configurations: a.configurations,
+                no_png: a.no_png,
+                ..a.common.overrides()
+            };
+            let l = load(&a.common.scene, &o)?;
+            commands::wave(&l, a.common.run()?)?;
         }
         Command::Fields(a) => {
             let o = Overrides {

@@ -39,15 +39,17 @@ pub struct CliProgress {
 }
 
 impl CliProgress {
-    /// A bar for `total` paths, labelled `what`.
-    pub fn new(total: u64, what: &str, quiet: bool, cancel_after: Option<u64>) -> Self {
+    /// A bar for `total` units of work (`unit`: "paths", "configurations"), labelled `what`.
+    /// `cancel_after` counts the same units.
+    pub fn new(total: u64, unit: &str, what: &str, quiet: bool, cancel_after: Option<u64>) -> Self {
         let bar = if quiet || !std::io::stderr().is_terminal() {
             ProgressBar::hidden()
         } else {
             let bar = ProgressBar::new(total);
-            let style = ProgressStyle::with_template(
-                "{msg} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} paths, eta {eta}",
-            )
+            let style = ProgressStyle::with_template(&format!(
+                "{{msg}} [{{elapsed_precise}}] {{wide_bar}} {{human_pos}}/{{human_len}} {unit}, \
+                 eta {{eta}}"
+            ))
             .unwrap_or_else(|_| ProgressStyle::default_bar());
             bar.set_style(style);
             bar.set_message(what.to_string());
@@ -67,9 +69,9 @@ impl CliProgress {
 }
 
 impl Progress for CliProgress {
-    fn advance(&self, paths: u64) {
-        self.bar.inc(paths);
-        let done = self.done.fetch_add(paths, Ordering::Relaxed) + paths;
+    fn advance(&self, units: u64) {
+        self.bar.inc(units);
+        let done = self.done.fetch_add(units, Ordering::Relaxed) + units;
         if self.cancel_after.is_some_and(|n| done >= n) {
             INTERRUPTED.store(true, Ordering::SeqCst);
         }

@@ -36,6 +36,8 @@ pub struct Overrides {
     pub paths_per_realization: Option<u64>,
     /// `render.add_mean = false`.
     pub no_mean: bool,
+    /// `render.configurations`.
+    pub configurations: Option<usize>,
     /// `output.dir`.
     pub out: Option<PathBuf>,
     /// `output.png = false`.
@@ -351,6 +353,7 @@ fn apply(file: &mut SceneFile, o: &Overrides) {
     if o.no_mean {
         r.add_mean = false;
     }
+    r.configurations = o.configurations.unwrap_or(r.configurations);
     let out = &mut file.output;
     if let Some(dir) = &o.out {
         out.dir = dir.clone();
@@ -931,6 +934,15 @@ fn build(
     }
     if r.paths_per_realization == 0 {
         return Err(bad("render.paths_per_realization", "must be >= 1 (got 0)"));
+    }
+    if r.configurations < 2 {
+        return Err(bad(
+            "render.configurations",
+            format!(
+                "must be >= 2 (got {}; a covariance needs two configurations)",
+                r.configurations
+            ),
+        ));
     }
     let max_vertices = match r.max_vertices {
         Some(0) => return Err(bad("render.max_vertices", "must be >= 1 (got 0)")),

@@ -217,6 +217,8 @@ pub struct RenderSpec {
     pub paths_per_realization: u64,
     /// Add the speckle mean to every field realization.
     pub add_mean: bool,
+    /// Scatterer configurations `R` of `speckle wave` (at least 2).
+    pub configurations: usize,
 }
 
 impl Default for RenderSpec {
@@ -233,6 +235,7 @@ impl Default for RenderSpec {
             realizations: 8,
             paths_per_realization: 20_000,
             add_mean: true,
+            configurations: 200,
         }
     }
 }

@@ -973,23 +973,27 @@ fn flatland_intensity_writes_float64_arrays_and_far_arc_angles() {
     let o = speckle(dir.path(), &["intensity", p, "-q"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let res = dir.path().join("res");
-    let (shape, intensity) = load_npy_as(&res.join("flat_intensity.npy"), "<f8");
+    let (shape, intensity) = load_npy_as(&res.join("flat.intensity.npy"), "<f8");
     assert_eq!(shape, vec![2, 6]);
     assert!(
         intensity.iter().all(|v| v.is_finite() && *v > 0.0),
         "{intensity:?}"
     );
-    let (shape, se) = load_npy_as(&res.join("flat_intensity_se.npy"), "<f8");
+    let (shape, se) = load_npy_as(&res.join("flat.intensity_stderr.npy"), "<f8");
     assert_eq!(shape, vec![2, 6]);
     assert!(se.iter().zip(&intensity).all(|(s, v)| *s > 0.0 && s < v));
-    let (shape, single) = load_npy_as(&res.join("flat_intensity_single.npy"), "<f8");
+    let (shape, single) = load_npy_as(&res.join("flat.intensity_single.npy"), "<f8");
     assert_eq!(shape, vec![2, 6]);
     assert!(single.iter().all(|v| v.is_finite()));
 
-    let meta = load_json(&res.join("flat_intensity.json"));
+    let meta = load_json(&res.join("flat.intensity.json"));
     assert_eq!(meta["command"], "intensity");
     assert_eq!(meta["derived"]["dimension"], 2);
-    assert_eq!(meta["files"]["intensity"], "flat_intensity.npy");
+    assert_eq!(meta["files"]["intensity"], "flat.intensity.npy");
+    assert_eq!(
+        meta["files"]["intensity_stderr"],
+        "flat.intensity_stderr.npy"
+    );
     assert_eq!(meta["render"]["paths"], 3000);
     assert!(
         meta["units"]["far_field_sensor"]
@@ -1059,7 +1063,7 @@ fn flatland_intensity_writes_float64_arrays_and_far_arc_angles() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let (shape, _) = load_npy_as(&dir.path().join("e/flat_intensity_se.npy"), "<f8");
+    let (shape, _) = load_npy_as(&dir.path().join("e/flat.intensity_stderr.npy"), "<f8");
     assert_eq!(shape, vec![3]);
 }
 
@@ -1073,13 +1077,197 @@ fn intensity_of_a_sensor_grid_writes_an_image_per_source() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let res = dir.path().join("res");
-    let (shape, _) = load_npy_as(&res.join("tiny_intensity.npy"), "<f8");
+    let (shape, _) = load_npy_as(&res.join("tiny.intensity.npy"), "<f8");
     assert_eq!(shape, vec![2, 6]);
     for s in 0..2 {
-        let png = std::fs::read(res.join(format!("tiny_intensity.s{s}.png"))).unwrap();
+        let png = std::fs::read(res.join(format!("tiny.intensity.s{s}.png"))).unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     }
-    let meta = load_json(&res.join("tiny_intensity.json"));
+    let meta = load_json(&res.join("tiny.intensity.json"));
     assert_eq!(meta["derived"]["dimension"], 3);
     assert_eq!(meta["files"]["png"]["files"].as_array().unwrap().len(), 2);
+}
+
+/// A tiny flatland scene for the wave solver: a 10 x 4 wavelength box, mean free path 4
+/// (about 16 isotropic scatterers per configuration), a plane wave, 3 far-field directions.
+const WAVE_2D: &str = r#"
+name = "wave2d"
+dimension = 2
+wavelength = 1.0
+
+[medium]
+size = [10.0, 4.0, 0.0]
+mean_free_path = 4.0
+
+[[sources]]
+type = "plane"
+direction = [0.0, 1.0, 0.0]
+
+[[sensors]]
+type = "far_arc"
+angles_deg = [-20.0, 20.0]
+n = 3
+
+[render]
+paths = 2000
+seed = 9
+configurations = 20
+
+[output]
+dir = "res"
+"#;
+
+#[test]
+fn wave_writes_npy_and_json_independent_of_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "wave2d.toml", WAVE_2D);
+    let p = p.to_str().unwrap();
+    for (threads, out) in [("1", "t1"), ("2", "t2")] {
+        let o = speckle(
+            dir.path(),
+            &["wave", p, "-q", "--threads", threads, "--out", out],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let res = dir.path().join("t1");
+    let arrays = [
+        ("wave_cov", vec![3, 3]),
+        ("wave_cov_stderr", vec![3, 3]),
+        ("wave_mean", vec![3]),
+        ("wave_mean_stderr", vec![3]),
+        ("wave_fields", vec![20, 1, 3]),
+    ];
+    for (kind, want) in &arrays {
+        let file = format!("wave2d.{kind}.npy");
+        let (shape, data) = load_npy(&res.join(&file));
+        assert_eq!(&shape, want, "{kind}");
+        assert!(data.iter().all(|(a, b)| a.is_finite() && b.is_finite()));
+        let other = std::fs::read(dir.path().join("t2").join(&file)).unwrap();
+        assert!(
+            std::fs::read(res.join(&file)).unwrap() == other,
+            "{file} depends on the thread count"
+        );
+    }
+    // A covariance: Hermitian with positive intensities.
+    let (_, cov) = load_npy(&res.join("wave2d.wave_cov.npy"));
+    for i in 0..3 {
+        assert!(cov[i * 3 + i].0 > 0.0 && cov[i * 3 + i].1 == 0.0);
+        for j in 0..3 {
+            let (a, b) = (cov[i * 3 + j], cov[j * 3 + i]);
+            assert!((a.0 - b.0).abs() <= 1e-12 * a.0.abs().max(1.0) && (a.1 + b.1).abs() <= 1e-12);
+        }
+    }
+    assert!(res.join("wave2d.wave_cov.png").exists());
+    let meta = load_json(&res.join("wave2d.wave.json"));
+    assert_eq!(meta["command"], "wave");
+    assert_eq!(meta["render"]["configurations"], 20);
+    assert_eq!(meta["render"]["seed"], 9);
+    assert_eq!(meta["files"]["wave_cov"], "wave2d.wave_cov.npy");
+    // n |V| = sigma_s |V| / (4 / k) = 0.25 * 40 * 2 pi / 4 = 5 pi.
+    let expected = meta["render"]["expected_scatterers"].as_f64().unwrap();
+    assert!(
+        (expected - 5.0 * std::f64::consts::PI).abs() < 1e-9,
+        "{expected}"
+    );
+    let mean = meta["render"]["mean_scatterers"].as_f64().unwrap();
+    assert!(mean > 0.5 * expected && mean < 1.5 * expected, "{mean}");
+    let leftovers: Vec<_> = std::fs::read_dir(&res)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+
+    // Without -q, the cost is announced before solving.
+    let o = speckle(dir.path(), &["wave", p, "--no-png", "--out", "t3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("about 15.7 scatterers"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(!dir.path().join("t3/wave2d.wave_cov.png").exists());
+
+    // The Monte Carlo covariance has the same pairs in the same order.
+    let o = speckle(dir.path(), &["covariance", p, "-q", "--out", "t1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy(&res.join("wave2d.cov.npy"));
+    assert_eq!(shape, vec![3, 3]);
+
+    // A sensor grid gives intensity images of the first `png_realizations` configurations.
+    let iso = TINY
+        .replace("albedo = 0.9\n", "")
+        .replace("type = \"hg\"\ng = 0.4", "type = \"isotropic\"");
+    let g = write(dir.path(), "grid.toml", &iso);
+    let args = ["wave", g.to_str().unwrap(), "-q", "--configurations", "3"];
+    let o = speckle(dir.path(), &[&args[..], &["--out", "g"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (shape, _) = load_npy(&dir.path().join("g/tiny.wave_fields.npy"));
+    assert_eq!(shape, vec![3, 2, 6]);
+    for r in 0..3 {
+        for s in 0..2 {
+            let png = dir.path().join(format!("g/tiny.wave.r{r}.s{s}.png"));
+            assert_eq!(png.exists(), r < 2, "{}", png.display());
+        }
+    }
+
+    // A cancelled wave render writes nothing.
+    let o = speckle(
+        dir.path(),
+        &[
+            "wave",
+            p,
+            "-q",
+            "--configurations",
+            "100000",
+            "--cancel-after-paths",
+            "1",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(!dir.path().join("res").exists());
+}
+
+#[test]
+fn wave_rejects_what_it_does_not_model_and_names_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            WAVE_2D.replace(
+                "mean_free_path = 4.0",
+                "mean_free_path = 4.0\n[phase]\ntype = \"hg\"\ng = 0.3",
+            ),
+            vec![],
+            "wave2d.toml: phase: the wave solver models isotropic point scatterers",
+        ),
+        (
+            WAVE_2D.replace("mean_free_path = 4.0", "sigma_s = 0.25\nsigma_a = 0.01"),
+            vec![],
+            "wave2d.toml: medium.sigma_a: must be 0",
+        ),
+        (
+            WAVE_2D.replace("configurations = 20", "configurations = 1"),
+            vec![],
+            "render.configurations: must be >= 2",
+        ),
+        (
+            WAVE_2D.to_string(),
+            vec!["--configurations", "1"],
+            "render.configurations: must be >= 2",
+        ),
+        (
+            WAVE_2D.replace("[10.0, 4.0, 0.0]", "[1000.0, 1000.0, 0.0]"),
+            vec![],
+            "wave2d.toml: medium: the box holds",
+        ),
+    ];
+    for (text, extra, expected) in cases {
+        let p = write(dir.path(), "wave2d.toml", &text);
+        let mut args = vec!["wave", p.to_str().unwrap(), "-q"];
+        args.extend(extra);
+        let o = speckle(dir.path(), &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{expected}: {}", stderr(&o));
+    }
+    assert!(!dir.path().join("res").exists());
 }

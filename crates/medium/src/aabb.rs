@@ -42,22 +42,11 @@ impl Aabb {
     /// assert!(r.contains(DVec3::new(1.0, 2.0, 0.0)) && !r.contains(DVec3::new(1.0, 2.0, 0.1)));
     /// ```
     pub fn flat(min: DVec2, max: DVec2) -> Result<Self, MediumError> {
-        if !min.is_finite() || !max.is_finite() {
-            return Err(MediumError::InvalidBox {
-                field: "corners",
-                reason: format!("corners must be finite (min {min}, max {max})"),
-            });
-        }
-        let size = max - min;
-        if size.min_element() <= 0.0 {
-            return Err(MediumError::InvalidBox {
-                field: "size",
-                reason: format!("every extent must be > 0 (got {size})"),
-            });
-        }
+        // Validate the rectangle as a unit-thick box, then flatten it.
+        let b = Self::new(min.extend(0.0), max.extend(1.0))?;
         Ok(Self {
-            min: min.extend(0.0),
-            max: max.extend(0.0),
+            min: b.min,
+            max: b.max.with_z(0.0),
         })
     }
 

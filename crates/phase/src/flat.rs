@@ -101,13 +101,12 @@ pub struct FlatHenyeyGreenstein {
 }
 
 impl FlatHenyeyGreenstein {
-    /// Flatland HG with anisotropy `g`; rejects NaN and `|g| >= 1` (no clamping).
+    /// Flatland HG with anisotropy `g`; rejects NaN and `|g| >= 1` (no clamping), as the 3D
+    /// function does.
     pub fn new(g: f64) -> Result<Self, PhaseError> {
-        if g.is_finite() && g.abs() < 1.0 {
-            Ok(Self { g })
-        } else {
-            Err(PhaseError::InvalidAnisotropy(g))
-        }
+        Ok(Self {
+            g: crate::HenyeyGreenstein::new(g)?.g(),
+        })
     }
 
     /// The anisotropy parameter.
@@ -211,6 +210,7 @@ impl Circular for FlatTabulatedAmplitude {
 mod tests {
     use super::*;
     use crate::Phase;
+    use crate::testing::{ks_distance, uniform_stream};
     use std::sync::Arc;
 
     /// `int rho dtheta` and `int cos(theta) rho dtheta` by the midpoint rule with `n` panels.
@@ -228,19 +228,11 @@ mod tests {
     /// `sqrt(n) * D` of `n` sampled directions' signed angles in `(-pi, pi]` against the CDF of
     /// the density (midpoint rule on a fine grid).
     fn ks_statistic(p: &Phase, n: usize) -> f64 {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = || {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        };
+        let mut next = uniform_stream(0x2545_F491_4F6C_DD1D);
         let inc = DVec3::new(0.6, -0.8, 0.0);
-        let mut xs: Vec<f64> = (0..n)
+        let xs: Vec<f64> = (0..n)
             .map(|_| signed_angle(inc, p.sample_direction(inc, [next(), next()])))
             .collect();
-        xs.sort_by(f64::total_cmp);
         let m = 400_000;
         let h = TAU / m as f64;
         let mut cdf = vec![0.0; m + 1];
@@ -249,19 +241,11 @@ mod tests {
             cdf[i] = cdf[i - 1] + h * p.pdf_direction(inc, rotate_in_plane(inc, t));
         }
         let total = cdf[m];
-        let f = |x: f64| {
+        ks_distance(xs, |x: f64| {
             let t = ((x + PI) / h).clamp(0.0, m as f64 - 1e-9);
             let (i, a) = (t as usize, t.fract());
             (cdf[i] * (1.0 - a) + cdf[i + 1] * a) / total
-        };
-        let mut d: f64 = 0.0;
-        for (i, &x) in xs.iter().enumerate() {
-            let fx = f(x);
-            d = d
-                .max((fx - i as f64 / n as f64).abs())
-                .max(((i + 1) as f64 / n as f64 - fx).abs());
-        }
-        (n as f64).sqrt() * d
+        })
     }
 
     fn skewed_table() -> FlatTabulatedAmplitude {

@@ -245,20 +245,38 @@ pub(crate) mod testing {
         (2.0 * PI * h / 3.0 * m0, 2.0 * PI * h / 3.0 * m1)
     }
 
-    /// Kolmogorov-Smirnov statistic of `n` stratified-free pseudo-random samples of the cosine
-    /// against the CDF obtained by integrating the density; returns `sqrt(n) * D`.
-    pub fn ks_statistic(p: &dyn PhaseFunction, n: usize) -> f64 {
-        // A fixed-seed SplitMix64 stream keeps this crate free of an RNG dependency.
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = || {
+    /// A fixed-seed SplitMix64 stream of uniform variates in `[0, 1)` (keeps this crate free of
+    /// an RNG dependency).
+    pub fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
             state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
             let mut z = state;
             z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
             z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        };
-        let mut xs: Vec<f64> = (0..n).map(|_| p.sample_cosine(next())).collect();
+        }
+    }
+
+    /// `sqrt(n) * D`, the Kolmogorov-Smirnov distance of the samples `xs` from the CDF `f`.
+    pub fn ks_distance(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {
         xs.sort_by(f64::total_cmp);
+        let n = xs.len();
+        let mut d: f64 = 0.0;
+        for (i, &x) in xs.iter().enumerate() {
+            let fx = f(x);
+            d = d
+                .max((fx - i as f64 / n as f64).abs())
+                .max(((i + 1) as f64 / n as f64 - fx).abs());
+        }
+        (n as f64).sqrt() * d
+    }
+
+    /// Kolmogorov-Smirnov statistic of `n` pseudo-random samples of the cosine against the CDF
+    /// obtained by integrating the density; returns `sqrt(n) * D`.
+    pub fn ks_statistic(p: &dyn PhaseFunction, n: usize) -> f64 {
+        let mut next = uniform_stream(0x9E37_79B9_7F4A_7C15);
+        let xs: Vec<f64> = (0..n).map(|_| p.sample_cosine(next())).collect();
         // Reference CDF on a fine grid (trapezoid on the density), interpolated.
         let m = 200_000;
         let grid: Vec<f64> = (0..=m).map(|i| -1.0 + 2.0 * i as f64 / m as f64).collect();
@@ -268,20 +286,12 @@ pub(crate) mod testing {
             cdf[i] = cdf[i - 1] + PI * h * (p.density(grid[i]) + p.density(grid[i - 1]));
         }
         let total = cdf[m];
-        let f = |x: f64| {
+        ks_distance(xs, |x: f64| {
             let t = ((x + 1.0) / 2.0 * m as f64).clamp(0.0, m as f64 - 1e-9);
             let i = t as usize;
             let a = t - i as f64;
             (cdf[i] * (1.0 - a) + cdf[i + 1] * a) / total
-        };
-        let mut d: f64 = 0.0;
-        for (i, &x) in xs.iter().enumerate() {
-            let fx = f(x);
-            d = d
-                .max((fx - i as f64 / n as f64).abs())
-                .max(((i + 1) as f64 / n as f64 - fx).abs());
-        }
-        (n as f64).sqrt() * d
+        })
     }
 
     /// 1.95 is the 0.1% critical value of the Kolmogorov distribution.
