@@ -47,8 +47,8 @@
 //! beam diffracting in from the sides) and do not agree; see `docs/validation.md`.
 
 use speckle::estimators::{
-    Coherence, CovarianceOptions, MatrixEstimate, NoProgress, Pair, Scene, Sensor, Source,
-    render_covariance, render_intensity, speckle_means,
+    Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
+    render_intensity, speckle_means,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::paths::TracerConfig;
@@ -183,10 +183,6 @@ fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {
     part(a.re - b.re, sa.re, sb.re).max(part(a.im - b.im, sa.im, sb.im))
 }
 
-fn entry(m: &MatrixEstimate, i: usize, j: usize) -> (Complex64, Complex64) {
-    m.get(i, j)
-}
-
 fn run(c: &Case) {
     let built = build(c);
     let s = &built.scene;
@@ -273,8 +269,8 @@ fn run(c: &Case) {
     // Intensities.
     let mut zmax_int: (f64, usize) = (0.0, 0);
     for k in 0..j {
-        let (a, sa) = entry(&mc.total, k, k);
-        let (b, sb) = entry(&wave.covariance, k, k);
+        let (a, sa) = mc.total.get(k, k);
+        let (b, sb) = wave.covariance.get(k, k);
         let zk = z(a, sa, b, sb);
         if zk > zmax_int.0 {
             zmax_int = (zk, k);
@@ -286,8 +282,8 @@ fn run(c: &Case) {
     for &(phi, v, vs) in &built.far[MEMORY] {
         for (label, v2) in [("shifted", vs), ("unshifted", v)] {
             let (p, q) = (built.pair_of[&(0, v)], built.pair_of[&(1, v2)]);
-            let (a, sa) = entry(&mc.total, p, q);
-            let (b, sb) = entry(&wave.covariance, p, q);
+            let (a, sa) = mc.total.get(p, q);
+            let (b, sb) = wave.covariance.get(p, q);
             zmax_mem = zmax_mem.max(z(a, sa, b, sb));
             if label == "shifted" {
                 let norm = (mc.total.value.get(p, p).re * mc.total.value.get(q, q).re).sqrt();
@@ -308,7 +304,7 @@ fn run(c: &Case) {
         built.pair_of[&(0, v)]
     };
     let (back, side) = (idx(180.0), [idx(175.0), idx(185.0)]);
-    let (wb, swb) = entry(&wave.covariance, back, back);
+    let (wb, swb) = wave.covariance.get(back, back);
     let ws = 0.5
         * (wave.covariance.value.get(side[0], side[0]).re
             + wave.covariance.value.get(side[1], side[1]).re);
@@ -320,9 +316,9 @@ fn run(c: &Case) {
             .re
             .hypot(wave.covariance.std_error.get(side[1], side[1]).re);
     let peak_z = (wb.re - ws) / swb.re.hypot(sws);
-    let (fb, sfb) = entry(&fo.total, back, 0);
+    let (fb, sfb) = fo.total.get(back, 0);
     let fo_z = (wb.re - fb.re) / swb.re.hypot(sfb.re);
-    let (mb, _) = entry(&mc.total, back, back);
+    let (mb, _) = mc.total.get(back, back);
     println!(
         "  backscattering: wave {:.4} +- {:.4} (sides {:.4}, peak z {:.1}); MC forward+reversed \
          {:.4}; forward-only {:.4} (wave above it by z {:.1})",
