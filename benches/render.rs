@@ -40,7 +40,7 @@ fn scene(n_src: usize, n_sens: usize) -> Scene<HomogeneousBox, Phase> {
 
 struct Count(u64);
 impl VertexSink for Count {
-    fn first(&mut self, _: DVec3, _: f64, _: &mut PathRng) {
+    fn first(&mut self, _: DVec3, _: usize, _: f64, _: &mut PathRng) {
         self.0 += 1;
     }
     fn vertex(&mut self, _: &Vertex, _: &mut PathRng) {

@@ -15,6 +15,8 @@ use speckle_phase::PhaseFunction;
 pub(crate) struct Connector<'s, M, P> {
     scene: &'s Scene<M, P>,
     k: f64,
+    /// Particle type at `x1` of the current path.
+    type1: usize,
     in1: Vec<Leg>,
     out1: Vec<Leg>,
     /// `upsilon(i -> x1) s(i . w12)` per source.
@@ -40,6 +42,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         Self {
             scene,
             k: scene.wavenumber(),
+            type1: 0,
             in1: vec![leg; ns],
             out1: vec![leg; nv],
             fwd_src: vec![zero; ns],
@@ -50,9 +53,11 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         }
     }
 
-    /// Starts a path at `x1` and fills `a` with the single-scattering values
-    /// `F_j = upsilon(i_j -> x1) s(i_j -> v_j) upsilon(x1 -> v_j)` (Eq. 41's integrand).
-    pub(crate) fn first(&mut self, x1: DVec3) {
+    /// Starts a path at `x1`, where a particle of type `ty` scatters, and fills `a` with the
+    /// single-scattering values `F_j = upsilon(i_j -> x1) s(i_j -> v_j) upsilon(x1 -> v_j)`
+    /// (Eq. 41's integrand, with the amplitude `s_ty` of that particle).
+    pub(crate) fn first(&mut self, x1: DVec3, ty: usize) {
+        self.type1 = ty;
         let (m, k) = (self.scene.medium(), self.k);
         for (leg, s) in self.in1.iter_mut().zip(self.scene.sources()) {
             *leg = s.leg(m, k, x1);
@@ -60,7 +65,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         for (leg, v) in self.out1.iter_mut().zip(self.scene.sensors()) {
             *leg = v.leg(m, k, x1);
         }
-        let phase = self.scene.phase();
+        let phase = &self.scene.phases()[ty];
         for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
             let (i, o) = (&self.in1[p.source], &self.out1[p.sensor]);
             *a = i.amp * o.amp * phase.amplitude_between(i.dir, o.dir);
@@ -69,7 +74,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
 
     /// Fixes the first direction `w12` of the current path (call once, at its second vertex).
     pub(crate) fn second(&mut self, w12: DVec3) {
-        let phase = self.scene.phase();
+        let phase = &self.scene.phases()[self.type1];
         for (f, leg) in self.fwd_src.iter_mut().zip(&self.in1) {
             *f = leg.amp * phase.amplitude_between(leg.dir, w12);
         }
@@ -78,9 +83,12 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         }
     }
 
-    /// Fills `a` with the next-event values of vertex `x_b` reached along `w_in` (Eq. 38).
-    pub(crate) fn vertex(&mut self, x: DVec3, w_in: DVec3, coherence: Coherence) {
-        let (m, k, phase) = (self.scene.medium(), self.k, self.scene.phase());
+    /// Fills `a` with the next-event values of vertex `x_b`, where a particle of type `ty`
+    /// scatters, reached along `w_in` (Eq. 38; with types, Eq. 48 of App. A.1 for the sampled
+    /// types of `x1` and `x_b`).
+    pub(crate) fn vertex(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
+        let (m, k) = (self.scene.medium(), self.k);
+        let phase = &self.scene.phases()[ty];
         for (f, v) in self.fwd_sens.iter_mut().zip(self.scene.sensors()) {
             let leg = v.leg(m, k, x);
             *f = leg.amp * phase.amplitude_between(w_in, leg.dir);

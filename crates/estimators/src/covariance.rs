@@ -64,9 +64,9 @@ struct CovarianceSink<'c, 's, M, P> {
 }
 
 impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
-    fn first(&mut self, x1: DVec3, weight: f64, _rng: &mut PathRng) {
+    fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
-        self.conn.first(x1);
+        self.conn.first(x1, ty);
         let (a, conj) = (&self.conn.a, &mut self.conj);
         self.layout
             .accumulate(&mut self.batch.single, a, conj, weight);
@@ -76,7 +76,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
         if v.index == 2 {
             self.conn.second(v.w12);
         }
-        self.conn.vertex(v.x, v.w_in, self.coherence);
+        self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
         let w = self.factor * v.weight;
         let (a, conj) = (&self.conn.a, &mut self.conj);
         self.layout.accumulate(&mut self.batch.multiple, a, conj, w);
@@ -212,8 +212,8 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
             if path % CANCEL_CHECK == 0 && progress.cancelled() {
                 return None;
             }
-            let (x1, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
-            conn.first(x1);
+            let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
+            conn.first(x1, ty);
             Layout::Full.accumulate(&mut sum, &conn.a, &mut conj, w);
         }
         progress.advance(range.end - range.start);

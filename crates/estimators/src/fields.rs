@@ -52,10 +52,10 @@ fn random_phase(rng: &mut PathRng) -> Complex64 {
 }
 
 impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
-    fn first(&mut self, x1: DVec3, weight: f64, rng: &mut PathRng) {
+    fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng) {
         // Single scattering: z sqrt(sigma_s / q_o) F, so that E[u u^H] gains (sigma_s / q_o) F F^H
         // as in Alg. 1. (Alg. 2 prints sqrt(V/2) here, which would halve single scattering.)
-        self.conn.first(x1);
+        self.conn.first(x1, ty);
         let z = random_phase(rng) * weight.sqrt();
         for (u, a) in self.u.iter_mut().zip(&self.conn.a) {
             *u += z * a;
@@ -66,7 +66,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
         if v.index == 2 {
             self.conn.second(v.w12);
         }
-        self.conn.vertex(v.x, v.w_in, self.coherence);
+        self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
         let z = random_phase(rng) * (self.factor * v.weight).sqrt();
         for (u, a) in self.u.iter_mut().zip(&self.conn.a) {
             *u += z * a;

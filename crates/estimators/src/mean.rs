@@ -70,7 +70,6 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
                     field: "medium".into(),
                     reason: "the far-field to far-field mean needs a homogeneous medium".into(),
                 })?;
-            let phase = scene.phase();
             // n sqrt(c_s) s(1), fixed by the optical theorem.
             let forward = match m.dimension() {
                 Dimension::Three => Complex64::new(0.0, k * sigma_t / (4.0 * PI)),
@@ -78,10 +77,32 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
                     Complex64::from_polar(0.5 * sigma_t * (k / (2.0 * PI)).sqrt(), 0.75 * PI)
                 }
             };
-            let amp = forward * phase.amplitude_between(i, v) / phase.amplitude_between(i, i);
+            let amp = forward * relative_amplitude(scene, i, v);
             amp * box_integral(m.bounds(), k, sigma_t, i, v)
         }
     })
+}
+
+/// `s(i . v) / s(1)`, the amplitude relative to the forward one. With several particle types it
+/// is `sum_iota beta_iota s_iota(i . v) / s_iota(1)` (App. A.1, Eq. 48 with each type's forward
+/// amplitude fixed by the optical theorem), with `beta` taken at the centre of the medium: exact
+/// when the types share one albedo and `beta` is uniform, and in any case exact forward, where the
+/// far-field mean lives.
+fn relative_amplitude<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    i: DVec3,
+    v: DVec3,
+) -> Complex64 {
+    let ratio = |p: &P| p.amplitude_between(i, v) / p.amplitude_between(i, i);
+    let phases = scene.phases();
+    if phases.len() == 1 {
+        return ratio(&phases[0]);
+    }
+    let mut beta = vec![0.0; phases.len()];
+    scene
+        .medium()
+        .type_probabilities(scene.medium().bounds().lerp([0.5; 3]), &mut beta);
+    phases.iter().zip(&beta).map(|(p, b)| *b * ratio(p)).sum()
 }
 
 /// The speckle means of all pairs of a scene, in pair order.

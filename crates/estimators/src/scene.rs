@@ -40,7 +40,7 @@ pub enum Coherence {
 #[derive(Debug, Clone)]
 pub struct Scene<M, P> {
     medium: M,
-    phase: P,
+    phases: Vec<P>,
     wavelength: f64,
     sources: Vec<Source>,
     sensors: Vec<Sensor>,
@@ -66,22 +66,63 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         pairs: Vec<Pair>,
         tracer: TracerConfig,
     ) -> Result<Self, EstimatorError> {
+        Self::with_types(
+            medium,
+            vec![phase],
+            wavelength,
+            sources,
+            sensors,
+            pairs,
+            tracer,
+        )
+    }
+
+    /// A scene in a medium of several particle types (Bar et al. 2019, App. A.1): `phases[iota]`
+    /// is the amplitude function of type `iota`, one per [`Medium::particle_types`]. Every
+    /// vertex draws its particle's type, so covariance and field estimates are those of Alg. 3
+    /// and Alg. 4 (see [`Tracer::with_types`]).
+    pub fn with_types(
+        medium: M,
+        phases: Vec<P>,
+        wavelength: f64,
+        sources: Vec<Source>,
+        sensors: Vec<Sensor>,
+        pairs: Vec<Pair>,
+        tracer: TracerConfig,
+    ) -> Result<Self, EstimatorError> {
         if !(wavelength.is_finite() && wavelength > 0.0) {
             return Err(invalid(
                 "wavelength",
                 format!("must be finite and > 0 (got {wavelength})"),
             ));
         }
-        if phase.dimension() != medium.dimension() {
+        if phases.len() != medium.particle_types() {
             return Err(invalid(
-                "phase",
+                "phases",
                 format!(
-                    "the medium is {} but the phase function is {}; flatland scenes need a \
-                     flatland phase function and a flatland medium",
-                    medium.dimension(),
-                    phase.dimension()
+                    "the medium has {} particle types but {} phase functions were given",
+                    medium.particle_types(),
+                    phases.len()
                 ),
             ));
+        }
+        for (t, phase) in phases.iter().enumerate() {
+            if phase.dimension() != medium.dimension() {
+                let field = if phases.len() == 1 {
+                    "phase".to_string()
+                } else {
+                    format!("phases[{t}]")
+                };
+                return Err(invalid(
+                    field,
+                    format!(
+                        "the medium is {} but the phase function is {}; flatland scenes need a \
+                         flatland phase function and a flatland medium",
+                        medium.dimension(),
+                        phase.dimension()
+                    ),
+                ));
+            }
         }
         if sources.is_empty() {
             return Err(invalid("sources", "at least one source is needed"));
@@ -120,10 +161,10 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             ));
         }
         // Check the tracer configuration now rather than at render time.
-        Tracer::new(&medium, &phase, tracer).map_err(EstimatorError::Path)?;
+        Tracer::with_types(&medium, &phases, tracer).map_err(EstimatorError::Path)?;
         Ok(Self {
             medium,
-            phase,
+            phases,
             wavelength,
             sources,
             sensors,
@@ -137,9 +178,14 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         &self.medium
     }
 
-    /// The phase function.
+    /// The phase function (of particle type 0, the only one in a single-type medium).
     pub fn phase(&self) -> &P {
-        &self.phase
+        &self.phases[0]
+    }
+
+    /// The phase functions, one per particle type of the medium.
+    pub fn phases(&self) -> &[P] {
+        &self.phases
     }
 
     /// Wavelength (same length unit as the medium).
@@ -184,7 +230,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
 
     /// A tracer for this scene.
     pub fn tracer(&self) -> Result<Tracer<'_, M, P>, PathError> {
-        Tracer::new(&self.medium, &self.phase, self.tracer)
+        Tracer::with_types(&self.medium, &self.phases, self.tracer)
     }
 
     /// The reciprocal scene: every pair `(i, v)` becomes `(-v, -i)` (sources and sensors swap,
@@ -194,9 +240,9 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         M: Clone,
         P: Clone,
     {
-        Self::new(
+        Self::with_types(
             self.medium.clone(),
-            self.phase.clone(),
+            self.phases.clone(),
             self.wavelength,
             self.sensors.iter().map(Sensor::reciprocal).collect(),
             self.sources.iter().map(Source::reciprocal).collect(),

@@ -3,17 +3,30 @@
 //! A medium is described only by bulk parameters (Bar et al. 2019, Sec. 3, Eqs. 7-8): the scattering
 //! and absorption coefficients `sigma_s`, `sigma_a` (inverse length), and the region it fills. The
 //! estimators never look inside a medium: they go through the [`Medium`] trait, which answers the
-//! four questions path sampling and next-event connections ask:
+//! questions path sampling and next-event connections ask:
 //!
 //! - where can a path start ([`Medium::sample_scatterer`], density proportional to `sigma_s`),
 //! - how far does a path fly before its next collision ([`Medium::sample_flight`]),
 //! - what is the optical depth between two points or from a point to infinity
 //!   ([`Medium::optical_depth`], [`Medium::optical_depth_to_infinity`]),
-//! - what are the local coefficients ([`Medium::sigma_s`], [`Medium::sigma_t`]).
+//! - what are the local coefficients ([`Medium::sigma_s`], [`Medium::sigma_t`]),
+//! - which particle type scatters at a vertex ([`Medium::sample_type`],
+//!   [`Medium::type_probabilities`]).
 //!
-//! Design decision: a spatially varying medium (a density grid with delta tracking) is another
-//! implementation of [`Medium`]; the estimators are generic over the trait and need no change.
-//! The only implementation today is [`HomogeneousBox`].
+//! Design decision: a spatially varying medium is another implementation of [`Medium`]; the
+//! estimators are generic over the trait and need no change. Two implementations exist:
+//!
+//! - [`HomogeneousBox`]: constant coefficients in a box (closed-form flights and optical depths);
+//! - [`VoxelGrid`]: an `nx x ny x nz` voxel grid in a box, built from a density array scaling one
+//!   base [`Material`] or from an array of material ids. Optical depths are exact (3D-DDA voxel
+//!   traversal), flights use delta tracking with the global majorant (or, as an option, exact
+//!   regular tracking along the DDA, see [`Tracking`]).
+//!
+//! Both handle several particle types (Bar et al. 2019, App. A.1, Eqs. 42-45): at a scattering
+//! point `x` the particle hit is of type `iota` with probability `beta_iota(x)` (Eq. 44), given by
+//! a [`TypeMix`]. [`ParticleMix`] turns particle populations (radius, cross sections, number
+//! density or volume fraction) into the bulk coefficients of Eqs. 7 and 42-43 and the `beta`
+//! of Eq. 44.
 //!
 //! Field attenuation (Eq. 19) is half the intensity exponent: `tau = exp(-od / 2)`, see
 //! [`field_attenuation`].
@@ -22,11 +35,15 @@
 #![deny(missing_docs)]
 
 mod aabb;
+mod grid;
 mod homogeneous;
+mod particles;
 
 pub use aabb::Aabb;
 pub use glam::DVec3;
+pub use grid::{MAX_VOXELS, Material, Tracking, VoxelGrid};
 pub use homogeneous::HomogeneousBox;
+pub use particles::{Concentration, ParticleMix, ParticleType, TypeMix};
 pub use speckle_phase::Dimension;
 
 /// Errors raised when a medium is built from invalid parameters.
@@ -51,6 +68,25 @@ pub enum MediumError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A parameter of a particle mix, type mix or voxel grid is invalid.
+    #[error("{field}: {reason}")]
+    InvalidParameter {
+        /// The offending field with its index path, e.g. `particles[1].radius` or
+        /// `densities[17]`.
+        field: String,
+        /// What is wrong with it, with the value given.
+        reason: String,
+    },
+}
+
+impl MediumError {
+    /// An [`MediumError::InvalidParameter`] for `field` with the given reason.
+    pub(crate) fn param(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::InvalidParameter {
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
 }
 
 /// Field attenuation `tau = exp(-od / 2)` for an optical depth `od` (Bar et al. 2019, Eq. 19).
@@ -121,4 +157,87 @@ pub trait Medium: Send + Sync {
     ///
     /// Closed-form estimators (the far-field speckle mean) use it.
     fn uniform_sigma_t(&self) -> Option<f64>;
+
+    /// Number of particle types `T` the medium is made of (Bar et al. 2019, App. A.1). Type
+    /// `iota` scatters with the amplitude function at index `iota` of the scene's list; a medium
+    /// of a single type (the default) uses one amplitude function everywhere.
+    fn particle_types(&self) -> usize {
+        1
+    }
+
+    /// Samples the type of the particle that scatters at `x` from one uniform variate in
+    /// `[0, 1)`: type `iota` with probability `beta_iota(x) = N_iota(x) c_s,iota / sigma_s(x)`
+    /// (Eq. 44). Always 0 for a single-type medium; called only where `sigma_s(x) > 0`.
+    fn sample_type(&self, _x: DVec3, _u: f64) -> usize {
+        0
+    }
+
+    /// Writes the type probabilities `beta_iota(x)` (Eq. 44) into `out`, whose length is
+    /// [`Medium::particle_types`]; they sum to one where `sigma_s(x) > 0`.
+    fn type_probabilities(&self, _x: DVec3, out: &mut [f64]) {
+        out.fill(0.0);
+        out[0] = 1.0;
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod testing {
+    //! Shared helpers of the statistical tests.
+
+    /// A fixed-seed SplitMix64 stream of uniform variates in `[0, 1)` (keeps the crate free of
+    /// an RNG dependency).
+    pub fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        }
+    }
+
+    /// `sqrt(n) * D`, the Kolmogorov-Smirnov distance of the samples `xs` from the CDF `f`.
+    pub fn ks_distance(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {
+        xs.sort_by(f64::total_cmp);
+        let n = xs.len();
+        let mut d: f64 = 0.0;
+        for (i, &x) in xs.iter().enumerate() {
+            let fx = f(x);
+            d = d
+                .max((fx - i as f64 / n as f64).abs())
+                .max(((i + 1) as f64 / n as f64 - fx).abs());
+        }
+        (n as f64).sqrt() * d
+    }
+
+    /// Critical value of `sqrt(n) D` at significance 0.001 (Kolmogorov distribution).
+    pub const KS_CRITICAL_0_001: f64 = 1.95;
+
+    /// Pearson's statistic of `counts` against the probabilities `p` (cells with `p = 0` must
+    /// be empty and are skipped); returns it with the degrees of freedom.
+    pub fn chi_square_stat(counts: &[u64], p: &[f64]) -> (f64, usize) {
+        assert_eq!(counts.len(), p.len());
+        let n: u64 = counts.iter().sum();
+        let mut stat = 0.0;
+        let mut cells = 0;
+        for (&c, &q) in counts.iter().zip(p) {
+            if q == 0.0 {
+                assert_eq!(c, 0, "a cell of probability 0 was hit");
+                continue;
+            }
+            let e = q * n as f64;
+            stat += (c as f64 - e).powi(2) / e;
+            cells += 1;
+        }
+        (stat, cells - 1)
+    }
+
+    /// The 0.999 quantile of the chi-square distribution with `dof` degrees of freedom
+    /// (Wilson-Hilferty approximation, z = 3.09).
+    pub fn chi_square_bound(dof: usize) -> f64 {
+        let k = dof as f64;
+        let h = 2.0 / (9.0 * k);
+        k * (1.0 - h + 3.09 * h.sqrt()).powi(3)
+    }
 }

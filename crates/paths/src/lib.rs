@@ -57,6 +57,14 @@ pub enum PathError {
         /// The phase function's dimension.
         phase: speckle_phase::Dimension,
     },
+    /// The number of phase functions differs from the medium's number of particle types.
+    #[error("the medium has {medium} particle types but {phases} phase functions were given")]
+    TypeCount {
+        /// [`speckle_medium::Medium::particle_types`].
+        medium: usize,
+        /// The number of phase functions.
+        phases: usize,
+    },
     /// A flatland direction has a non-zero `z` component.
     #[error("{field} must lie in the plane z = 0 in flatland (got {value:?})")]
     NotInPlane {

@@ -41,6 +41,11 @@ pub struct Vertex {
     pub x: DVec3,
     /// Unit direction from `x_{b-1}` to `x_b`.
     pub w_in: DVec3,
+    /// Particle type at `x1` (always 0 in a single-type medium).
+    pub type1: usize,
+    /// Particle type at `x_b`, the same particle that scatters the path onwards (always 0 in
+    /// a single-type medium).
+    pub ty: usize,
     /// Throughput over sampling density, `sigma_s(x1) / (q_o(x1) p(w1))` (Eq. 36 without the
     /// forward/reversed factor 1/2).
     pub weight: f64,
@@ -48,17 +53,25 @@ pub struct Vertex {
 
 /// Receives the vertices of a sub-path as they are sampled.
 pub trait VertexSink {
-    /// The first vertex `x1`, with the single-scattering weight `sigma_s(x1) / q_o(x1)`.
-    fn first(&mut self, x1: DVec3, weight: f64, rng: &mut PathRng);
+    /// The first vertex `x1` with the particle type there, and the single-scattering weight
+    /// `sigma_s(x1) / q_o(x1)`.
+    fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng);
     /// A vertex `x_b`, `b >= 2`.
     fn vertex(&mut self, v: &Vertex, rng: &mut PathRng);
 }
 
 /// Samples sub-paths in a medium with a phase function (Alg. 1, with roulette at every `b >= 2`).
+///
+/// In a medium of several particle types (Bar et al. 2019, App. A.1, Alg. 3/4) each vertex draws
+/// the type of its particle with probability `beta_iota(x)` ([`Medium::sample_type`]), and the
+/// path leaves the vertex along a direction sampled from that type's phase function, so the
+/// direction density is the bulk phase function `sum beta_iota |s_iota|^2`. A single-type medium
+/// draws no types (its random streams are those of a tracer without types).
 #[derive(Debug, Clone)]
 pub struct Tracer<'a, M, P> {
     medium: &'a M,
-    phase: &'a P,
+    phases: &'a [P],
+    typed: bool,
     first_vertex: FirstVertexSampler,
     first_direction: FirstDirectionSampler,
     max_vertices: u32,
@@ -67,19 +80,36 @@ pub struct Tracer<'a, M, P> {
 impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// A tracer for `medium` and `phase` with the given strategies.
     pub fn new(medium: &'a M, phase: &'a P, config: TracerConfig) -> Result<Self, PathError> {
+        Self::with_types(medium, std::slice::from_ref(phase), config)
+    }
+
+    /// A tracer for a medium of several particle types: `phases[iota]` is the phase function of
+    /// type `iota`, one per [`Medium::particle_types`].
+    pub fn with_types(
+        medium: &'a M,
+        phases: &'a [P],
+        config: TracerConfig,
+    ) -> Result<Self, PathError> {
         if config.max_vertices == 0 {
             return Err(PathError::InvalidMaxVertices);
         }
+        if phases.len() != medium.particle_types() {
+            return Err(PathError::TypeCount {
+                medium: medium.particle_types(),
+                phases: phases.len(),
+            });
+        }
         let dimension = medium.dimension();
-        if phase.dimension() != dimension {
+        if let Some(p) = phases.iter().find(|p| p.dimension() != dimension) {
             return Err(PathError::DimensionMismatch {
                 medium: dimension,
-                phase: phase.dimension(),
+                phase: p.dimension(),
             });
         }
         Ok(Self {
             medium,
-            phase,
+            phases,
+            typed: phases.len() > 1,
             first_vertex: FirstVertexSampler::new(config.first_vertex, medium)?,
             first_direction: FirstDirectionSampler::new(config.first_direction, dimension)?,
             max_vertices: config.max_vertices,
@@ -91,24 +121,42 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         self.medium
     }
 
-    /// The phase function.
+    /// The phase function of particle type 0 (the only one in a single-type medium).
     pub fn phase(&self) -> &'a P {
-        self.phase
+        &self.phases[0]
     }
 
-    /// Samples only a first vertex and returns it with its single-scattering weight
-    /// `sigma_s(x1) / q_o(x1)` (for estimators of single scattering alone, Eq. 41).
+    /// The phase functions, one per particle type.
+    pub fn phases(&self) -> &'a [P] {
+        self.phases
+    }
+
+    /// The particle type at `x` (drawing a variate only in a medium of several types).
     #[inline]
-    pub fn sample_first_vertex(&self, rng: &mut PathRng) -> (DVec3, f64) {
+    fn sample_type(&self, x: DVec3, rng: &mut PathRng) -> usize {
+        if self.typed {
+            self.medium.sample_type(x, rng.next_f64())
+        } else {
+            0
+        }
+    }
+
+    /// Samples only a first vertex and returns it with its particle type and single-scattering
+    /// weight `sigma_s(x1) / q_o(x1)` (for estimators of single scattering alone, Eq. 41).
+    #[inline]
+    pub fn sample_first_vertex(&self, rng: &mut PathRng) -> (DVec3, usize, f64) {
         let (x1, q) = self.first_vertex.sample(self.medium, rng.next_3());
-        (x1, self.medium.sigma_s(x1) / q)
+        let ty = self.sample_type(x1, rng);
+        (x1, ty, self.medium.sigma_s(x1) / q)
     }
 
     /// Samples one sub-path, handing every vertex to `sink`; returns the number of vertices.
     pub fn trace<S: VertexSink>(&self, rng: &mut PathRng, sink: &mut S) -> u32 {
-        let (x1, w_single) = self.sample_first_vertex(rng);
-        sink.first(x1, w_single, rng);
-        let (w12, p_w) = self.first_direction.sample(self.phase, rng.next_2());
+        let (x1, type1, w_single) = self.sample_first_vertex(rng);
+        sink.first(x1, type1, w_single, rng);
+        let (w12, p_w) = self
+            .first_direction
+            .sample(&self.phases[type1], rng.next_2());
         if p_w <= 0.0 {
             return 1;
         }
@@ -124,6 +172,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 break;
             }
             b += 1;
+            let ty = self.sample_type(next, rng);
             sink.vertex(
                 &Vertex {
                     index: b,
@@ -131,11 +180,13 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     w12,
                     x: next,
                     w_in: dir,
+                    type1,
+                    ty,
                     weight,
                 },
                 rng,
             );
-            dir = self.phase.sample_direction(dir, rng.next_2());
+            dir = self.phases[ty].sample_direction(dir, rng.next_2());
             x = next;
         }
         b
@@ -153,7 +204,7 @@ mod tests {
         vertices: Vec<f64>,
     }
     impl VertexSink for Count {
-        fn first(&mut self, _x1: DVec3, weight: f64, _rng: &mut PathRng) {
+        fn first(&mut self, _x1: DVec3, _ty: usize, weight: f64, _rng: &mut PathRng) {
             self.single += weight;
         }
         fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -192,7 +243,7 @@ mod tests {
         // V = sigma_s * area; the weight at x2 and beyond is 2 pi V (uniform first angle).
         struct InPlane(u64, f64);
         impl VertexSink for InPlane {
-            fn first(&mut self, x1: DVec3, _w: f64, _rng: &mut PathRng) {
+            fn first(&mut self, x1: DVec3, _ty: usize, _w: f64, _rng: &mut PathRng) {
                 assert_eq!(x1.z, 0.0);
             }
             fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {

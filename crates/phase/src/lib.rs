@@ -21,6 +21,7 @@ mod flat;
 mod hg;
 mod linear;
 mod mie;
+mod mixture;
 mod sphere;
 mod tabulated;
 
@@ -33,6 +34,7 @@ pub use mie::{
     MIE_MAX_INDEX_MODULUS, MIE_MAX_SIZE_PARAMETER, MIE_MAX_TABLE_ANGLES, MIE_MIN_SIZE_PARAMETER,
     MieSphere,
 };
+pub use mixture::HgMixture;
 pub use num_complex::Complex64;
 pub use sphere::{UNIFORM_SPHERE_PDF, orthonormal_basis, uniform_sphere};
 pub use tabulated::TabulatedAmplitude;
@@ -53,6 +55,9 @@ pub enum PhaseError {
     /// A Mie sphere has an invalid parameter (the message names it).
     #[error("Mie sphere: {0}")]
     InvalidMie(String),
+    /// A mixture of phase functions has an invalid lobe (the message names it).
+    #[error("phase mixture: {0}")]
+    InvalidMixture(String),
 }
 
 /// A normalised phase function with its complex scattering amplitude.
@@ -132,6 +137,8 @@ pub enum Phase {
     HenyeyGreenstein(HenyeyGreenstein),
     /// A tabulated complex amplitude (the way Mie and measured data enter).
     Tabulated(Arc<TabulatedAmplitude>),
+    /// A mixture of Henyey-Greenstein lobes with a real positive amplitude `sqrt(rho)`.
+    HgMixture(Arc<HgMixture>),
     /// Isotropic flatland scattering.
     FlatIsotropic,
     /// Flatland Henyey-Greenstein (wrapped Cauchy).
@@ -177,6 +184,10 @@ macro_rules! dispatch {
             }
             Phase::HenyeyGreenstein($p) => $e,
             Phase::Tabulated($p) => {
+                let $p = &**$p;
+                $e
+            }
+            Phase::HgMixture($p) => {
                 let $p = &**$p;
                 $e
             }
@@ -229,7 +240,10 @@ impl PhaseFunction for Phase {
     #[inline]
     fn dimension(&self) -> Dimension {
         match self {
-            Phase::Isotropic | Phase::HenyeyGreenstein(_) | Phase::Tabulated(_) => Dimension::Three,
+            Phase::Isotropic
+            | Phase::HenyeyGreenstein(_)
+            | Phase::Tabulated(_)
+            | Phase::HgMixture(_) => Dimension::Three,
             Phase::FlatIsotropic | Phase::FlatHenyeyGreenstein(_) | Phase::FlatTabulated(_) => {
                 Dimension::Two
             }

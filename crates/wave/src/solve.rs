@@ -45,6 +45,15 @@ pub fn check_scene(scene: &WaveScene) -> Result<Kernel, WaveError> {
         ));
     }
     let dimension = m.dimension();
+    if scene.phases().len() != 1 {
+        return Err(invalid(
+            "phases",
+            format!(
+                "the wave solver models one kind of scatterer (got {} particle types)",
+                scene.phases().len()
+            ),
+        ));
+    }
     if *scene.phase() != Phase::isotropic(dimension) {
         return Err(invalid(
             "phase",
