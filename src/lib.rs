@@ -20,4 +20,5 @@ pub use speckle_estimators as estimators;
 pub use speckle_medium as medium;
 pub use speckle_paths as paths;
 pub use speckle_phase as phase;
+pub use speckle_vmf as vmf;
 pub use speckle_wave as wave;
