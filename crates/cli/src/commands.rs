@@ -303,15 +303,38 @@ fn field_rows_size(l: &Loaded, rows: usize, field: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The speckle means of all pairs, or NaN (with a warning) where a closed form needs a
+/// homogeneous medium that the scene does not have: the far-field to far-field mean in a voxel
+/// grid of varying extinction.
+fn means_or_nan(l: &Loaded) -> Result<Vec<Complex64>, EstimatorError> {
+    match speckle_means(&l.scene) {
+        Ok(m) => Ok(m),
+        Err(EstimatorError::InvalidInput { field, reason }) if field == "medium" => {
+            tell!(
+                "warning: {reason}; the speckle mean of those pairs is written as NaN (the \
+                 covariance does not depend on it)"
+            );
+            l.scene
+                .pairs()
+                .iter()
+                .map(|&p| match speckle::estimators::speckle_mean(&l.scene, p) {
+                    Err(EstimatorError::InvalidInput { field, .. }) if field == "medium" => {
+                        Ok(Complex64::new(f64::NAN, f64::NAN))
+                    }
+                    other => other,
+                })
+                .collect()
+        }
+        Err(e) => Err(e),
+    }
+}
+
 /// `speckle covariance`.
 pub fn covariance(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
     let (j, opts) = covariance_setup(l)?;
     let r = &l.file.render;
     let ((est, mean), wall) = run.timed(l, r.paths, "paths", |p| {
-        Ok::<_, EstimatorError>((
-            render_covariance(&l.scene, &opts, p)?,
-            speckle_means(&l.scene)?,
-        ))
+        Ok::<_, EstimatorError>((render_covariance(&l.scene, &opts, p)?, means_or_nan(l)?))
     })?;
 
     let n = &l.name;
@@ -486,7 +509,7 @@ pub fn single(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
 /// `speckle mean`.
 pub fn mean(l: &Loaded) -> anyhow::Result<Vec<PathBuf>> {
     let start = Instant::now();
-    let mean = speckle_means(&l.scene).map_err(estimator_error)?;
+    let mean = means_or_nan(l).map_err(estimator_error)?;
     let wall = start.elapsed().as_secs_f64();
     let n = &l.name;
     let j = l.pairs();
@@ -728,8 +751,9 @@ fn wave_cost_note(l: &Loaded, expected: f64) {
 /// layout of `speckle covariance`.
 pub fn wave(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
     // The solver's own checks first (isotropic phase, sigma_a = 0, the size of the medium).
-    let expected = expected_scatterers(&l.scene).map_err(|e| e.into_cli(l))?;
-    let density = number_density(&l.scene).map_err(|e| e.into_cli(l))?;
+    let scene = l.box_scene()?;
+    let expected = expected_scatterers(&scene).map_err(|e| e.into_cli(l))?;
+    let density = number_density(&scene).map_err(|e| e.into_cli(l))?;
     let r = &l.file.render;
     let rr = r.configurations;
     let j = covariance_size(l)?;
@@ -742,7 +766,7 @@ pub fn wave(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         seed: r.seed,
     };
     let (est, wall) = run.timed(l, rr as u64, "configurations", |p| {
-        render_wave(&l.scene, &opts, p)
+        render_wave(&scene, &opts, p)
     })?;
 
     let n = &l.name;
@@ -847,36 +871,78 @@ pub fn check(l: &Loaded) {
             Dimension::Two => "2 (flatland: the plane z = 0)",
         }
     );
-    say!("  wavelength           {}", l.scene.wavelength());
+    say!(
+        "  wavelength           {} in the host (vacuum {}, host index {})",
+        l.scene.wavelength(),
+        l.file.wavelength,
+        l.file.medium.host_index.unwrap_or(1.0)
+    );
     say!(
         "  medium               box {} to {}, size {} wavelengths",
         f("box_min"),
         f("box_max"),
         f("size_in_wavelengths")
     );
-    say!(
-        "  coefficients         sigma_s {:.6}, sigma_a {:.6}, mean free path {:.6}, albedo {:.6}",
-        d["sigma_s"].as_f64().unwrap_or(0.0),
-        d["sigma_a"].as_f64().unwrap_or(0.0),
-        d["mean_free_path"].as_f64().unwrap_or(0.0),
-        d["albedo"].as_f64().unwrap_or(0.0)
-    );
-    say!(
-        "  optical thickness    {} (x, y, z)",
-        f("optical_thickness_xyz")
-    );
+    if d["medium_kind"] == "voxel grid" {
+        say!(
+            "  voxel grid           {} voxels (nx, ny, nz), voxel size {}, majorant sigma_t {:.6}",
+            f("grid_dims"),
+            f("voxel_size"),
+            d["majorant_sigma_t"].as_f64().unwrap_or(0.0)
+        );
+    } else {
+        say!(
+            "  coefficients         sigma_s {:.6}, sigma_a {:.6}, mean free path {:.6}, albedo {:.6}",
+            d["sigma_s"].as_f64().unwrap_or(0.0),
+            d["sigma_a"].as_f64().unwrap_or(0.0),
+            d["mean_free_path"].as_f64().unwrap_or(0.0),
+            d["albedo"].as_f64().unwrap_or(0.0)
+        );
+        say!(
+            "  optical thickness    {} (x, y, z)",
+            f("optical_thickness_xyz")
+        );
+    }
     say!(
         "  scattering volume    V = {:.6}",
         d["scattering_volume"].as_f64().unwrap_or(0.0)
     );
+    if let Some(parts) = d["medium_info"]["particles"].as_array() {
+        for (i, p) in parts.iter().enumerate() {
+            say!(
+                "  particles[{i}]         Mie x = {:.4}, Q_sca {:.6}, g {:.4}, N {:.4e}, beta {:.4}",
+                p["size_parameter"].as_f64().unwrap_or(0.0),
+                p["q_sca"].as_f64().unwrap_or(0.0),
+                p["asymmetry"].as_f64().unwrap_or(0.0),
+                p["number_density"].as_f64().unwrap_or(0.0),
+                p["beta"].as_f64().unwrap_or(0.0)
+            );
+        }
+    }
+    let describe = |p: &crate::spec::PhaseSpec| match p {
+        crate::spec::PhaseSpec::Isotropic {} => "isotropic".to_string(),
+        crate::spec::PhaseSpec::Hg { g } => format!("Henyey-Greenstein g = {g}"),
+        crate::spec::PhaseSpec::Tabulated { file } => format!("tabulated {}", file.display()),
+        crate::spec::PhaseSpec::HgMixture { weights, g } => {
+            format!("HG mixture, weights {weights:?}, g {g:?}")
+        }
+        crate::spec::PhaseSpec::Vmf { gamma, .. } => {
+            format!("vMF mixture of {} lobes", gamma.len())
+        }
+    };
+    let phase = match (&l.file.phase, &l.file.medium.particles, &l.file.medium.materials) {
+        (Some(p), _, _) => describe(p),
+        (None, Some(p), _) => format!("Mie, one table per particle type ({})", p.len()),
+        (None, None, Some(m)) => format!(
+            "per material: {}",
+            m.iter().map(|m| describe(&m.phase)).collect::<Vec<_>>().join("; ")
+        ),
+        (None, None, None) => describe(&crate::spec::PhaseSpec::Isotropic {}),
+    };
     say!(
-        "  phase                {} (mean cosine {:.4})",
-        match &l.file.phase {
-            crate::spec::PhaseSpec::Isotropic {} => "isotropic".to_string(),
-            crate::spec::PhaseSpec::Hg { g } => format!("Henyey-Greenstein g = {g}"),
-            crate::spec::PhaseSpec::Tabulated { file } => format!("tabulated {}", file.display()),
-        },
-        d["phase_mean_cosine"].as_f64().unwrap_or(0.0)
+        "  phase                {phase} (mean cosine {:.4}{})",
+        d["phase_mean_cosine"].as_f64().unwrap_or(0.0),
+        if l.scene.phases().len() > 1 { " for type 0" } else { "" }
     );
     say!("  sources              {}", l.n_sources());
     say!(
@@ -913,8 +979,9 @@ pub fn check(l: &Loaded) {
     say!(
         "  wave                 {} configurations; {}",
         r.configurations,
-        match expected_scatterers(&l.scene) {
-            Ok(n) => format!("{n:.1} scatterers per configuration on average"),
+        match l.box_scene().map(|s| expected_scatterers(&s)) {
+            Ok(Ok(n)) => format!("{n:.1} scatterers per configuration on average"),
+            Ok(Err(e)) => format!("not applicable ({e})"),
             Err(e) => format!("not applicable ({e})"),
         }
     );

@@ -29,6 +29,21 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "mudiff_cbs_2d",
         include_str!("../scenes/mudiff_cbs_2d.toml"),
     ),
+    ("beads", include_str!("../../../scenes/beads.toml")),
+];
+
+/// `(name, TOML text)` of the embedded memory-spectrum studies (`speckle memory-spectrum`; a
+/// format of their own, `memory::StudyFile`). `speckle example NAME` prints them too; they are
+/// not in [`EXAMPLES`], whose entries are scenes.
+pub const STUDIES: &[(&str, &str)] = &[
+    (
+        "fig11a_memory_small",
+        include_str!("../scenes/fig11a_memory_small.toml"),
+    ),
+    (
+        "fig11b_memory_large",
+        include_str!("../scenes/fig11b_memory_large.toml"),
+    ),
 ];
 
 /// `(name, text)` of the embedded data files, which scenes name as `embedded:NAME`.
@@ -49,7 +64,12 @@ fn keys(table: &[(&'static str, &str)]) -> Vec<&'static str> {
 
 /// The text of the example called `name`.
 pub fn example(name: &str) -> Option<&'static str> {
-    find(EXAMPLES, name)
+    find(EXAMPLES, name).or_else(|| find(STUDIES, name))
+}
+
+/// The names of the memory-spectrum studies.
+pub fn study_names() -> Vec<&'static str> {
+    keys(STUDIES)
 }
 
 /// The names of all examples.
@@ -79,6 +99,15 @@ mod tests {
             let l = load_str(text, name, Path::new("."), name, &Overrides::default())
                 .unwrap_or_else(|e| panic!("{name}: {}", e.0));
             assert_eq!(&l.name, name);
+        }
+    }
+
+    #[test]
+    fn every_study_is_valid_and_named_after_itself() {
+        for (name, text) in STUDIES {
+            let s = crate::memory::load_str(text, name, name, &Default::default())
+                .unwrap_or_else(|e| panic!("{name}: {}", e.0));
+            assert_eq!(&s.name, name);
         }
     }
 }

@@ -35,7 +35,11 @@ macro_rules! tell {
 
 mod commands;
 mod examples;
+mod fit;
 mod image;
+mod media;
+mod memory;
+mod mie;
 mod npy;
 mod output;
 mod progress;
@@ -108,6 +112,21 @@ enum Command {
     /// bytes per configuration. The outputs `<name>.wave_*.npy` have the pair order and layout
     /// of `speckle covariance`, for a direct comparison.
     Wave(WaveArgs),
+    /// Lorenz-Mie quantities of a sphere: efficiencies, cross sections, asymmetry, bulk
+    /// coefficients for a number density or volume fraction; with `--out`, the normalised
+    /// amplitude table (CSV, loadable as a tabulated phase function) and S1, S2 (`.npy`).
+    Mie(MieArgs),
+    /// Fit a mixture of von Mises-Fisher lobes to an amplitude function (HG, Mie or a CSV
+    /// table) by weighted EM, choosing the number of lobes to a tolerance and keeping the mean
+    /// cosine; with `--out`, write a `[phase] type = "vmf"` table for scene files.
+    FitPhase(FitArgs),
+    /// The memory effect versus wavelength for Mie spheres in a slab (Bar et al. 2019, Fig. 11):
+    /// C(theta) = |C_0theta|^2 / (C_00 C_thetatheta) per wavelength, against diffusion (Eq. 39).
+    ///
+    /// Reads a study file, a format of its own (`speckle example fig11a_memory_small` and
+    /// `speckle example fig11b_memory_large` print the two panels of Fig. 11), and writes
+    /// `<name>.memory*.npy`, a JSON sidecar with the Mie figures and an SVG plot.
+    MemorySpectrum(memory::MemoryArgs),
     /// Parse and validate a scene and print a summary; renders nothing.
     Check(CheckArgs),
     /// Print an embedded example scene (TOML) to stdout.
@@ -211,6 +230,114 @@ struct MeanArgs {
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+}
+
+#[derive(Debug, Args)]
+struct MieArgs {
+    /// Sphere radius (same length unit as the wavelength).
+    #[arg(long, value_name = "R")]
+    radius: f64,
+    /// Real part of the sphere's refractive index relative to the host (n_sphere / n_host).
+    #[arg(long, value_name = "M")]
+    index: f64,
+    /// Imaginary part of the relative index (absorption, >= 0).
+    #[arg(long, value_name = "K", default_value_t = 0.0, allow_negative_numbers = true)]
+    index_imag: f64,
+    /// Refractive index of the host medium.
+    #[arg(long, value_name = "N", default_value_t = 1.0)]
+    host_index: f64,
+    /// Vacuum wavelength.
+    #[arg(long, value_name = "L")]
+    wavelength: f64,
+    /// Particles per unit volume, for sigma_s and sigma_a.
+    #[arg(long, value_name = "N")]
+    number_density: Option<f64>,
+    /// Volume fraction of the particles, for sigma_s and sigma_a (Eq. 42).
+    #[arg(long, value_name = "F")]
+    volume_fraction: Option<f64>,
+    /// Scattering angles of the written table (default: enough for the sphere's size).
+    #[arg(long, value_name = "N")]
+    angles: Option<usize>,
+    /// Write the table, S1/S2 and a JSON sidecar into this directory.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Prefix of the written files.
+    #[arg(long, value_name = "NAME", default_value = "mie")]
+    name: String,
+}
+
+#[derive(Debug, Args)]
+struct FitArgs {
+    /// Fit Henyey-Greenstein with this g.
+    #[arg(long, value_name = "G", allow_negative_numbers = true)]
+    hg: Option<f64>,
+    /// Fit the amplitude of a Mie sphere of this radius (with --index, --wavelength).
+    #[arg(long, value_name = "R")]
+    mie_radius: Option<f64>,
+    /// Mie: real part of the relative refractive index.
+    #[arg(long, value_name = "M")]
+    index: Option<f64>,
+    /// Mie: imaginary part of the relative refractive index.
+    #[arg(long, value_name = "K", default_value_t = 0.0, allow_negative_numbers = true)]
+    index_imag: f64,
+    /// Mie: host refractive index.
+    #[arg(long, value_name = "N", default_value_t = 1.0)]
+    host_index: f64,
+    /// Mie: vacuum wavelength.
+    #[arg(long, value_name = "L")]
+    wavelength: Option<f64>,
+    /// Fit a CSV amplitude table (`theta_rad,re,im`, `theta_deg,re,im` or `mu,re,im`).
+    #[arg(long, value_name = "FILE")]
+    table: Option<PathBuf>,
+    /// Relative L2 residual of the amplitude to reach.
+    #[arg(long, value_name = "TOL", default_value_t = 0.02)]
+    tolerance: f64,
+    /// Most lobes tried by the automatic choice.
+    #[arg(long, value_name = "K", default_value_t = 13)]
+    max_components: usize,
+    /// Fit exactly this many lobes.
+    #[arg(long, value_name = "K")]
+    components: Option<usize>,
+    /// Write the fit into this directory.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Prefix of the written files.
+    #[arg(long, value_name = "NAME", default_value = "fit")]
+    name: String,
+}
+
+impl FitArgs {
+    fn request(self) -> Result<fit::FitRequest, InputError> {
+        let target = match (self.hg, self.mie_radius, self.table) {
+            (Some(g), None, None) => fit::Target::Hg(g),
+            (None, Some(radius), None) => fit::Target::Mie {
+                radius,
+                index: speckle::phase::Complex64::new(
+                    self.index
+                        .ok_or_else(|| InputError("--index: needed with --mie-radius".into()))?,
+                    self.index_imag,
+                ),
+                host_index: self.host_index,
+                wavelength: self.wavelength.ok_or_else(|| {
+                    InputError("--wavelength: needed with --mie-radius".into())
+                })?,
+            },
+            (None, None, Some(t)) => fit::Target::Table(t),
+            _ => {
+                return Err(InputError(
+                    "--hg/--mie-radius/--table: give exactly one target".into(),
+                ));
+            }
+        };
+        Ok(fit::FitRequest {
+            target,
+            tolerance: self.tolerance,
+            max_components: self.max_components,
+            components: self.components,
+            out: self.out,
+            name: self.name,
+        })
+    }
 }
 
 #[derive(Debug, Args)]
@@ -334,6 +461,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             set_threads(a.threads)?;
             commands::mean(&l)?;
         }
+        Command::Mie(a) => mie::run(&mie::MieRequest {
+            radius: a.radius,
+            index: a.index,
+            index_imag: a.index_imag,
+            host_index: a.host_index,
+            wavelength: a.wavelength,
+            number_density: a.number_density,
+            volume_fraction: a.volume_fraction,
+            angles: a.angles,
+            out: a.out,
+            name: a.name,
+        })?,
+        Command::FitPhase(a) => fit::run(&a.request()?)?,
+        Command::MemorySpectrum(a) => {
+            memory::run(&a)?;
+        }
         Command::Check(a) => {
             let l = load(&a.scene, &Overrides::default())?;
             commands::check(&l);
@@ -348,8 +491,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let name = a.name.as_deref().unwrap_or("default");
             let text = examples::example(name).ok_or_else(|| {
                 InputError(format!(
-                    "no example called {name:?}; the examples are: {}",
-                    examples::names().join(", ")
+                    "no example called {name:?}; the examples are: {} (and the \
+                     memory-spectrum studies {})",
+                    examples::names().join(", "),
+                    examples::study_names().join(", ")
                 ))
             })?;
             use std::io::Write as _;

@@ -2,15 +2,22 @@
 //! grid entries, and construction of the library's [`Scene`].
 
 use crate::InputError;
+use crate::media::SceneMedium;
 use crate::spec::{
-    CoherenceSpec, FirstDirectionSpec, FirstVertexSpec, MediumSpec, PhaseSpec, SceneFile,
-    SensorSpec, SourceSpec,
+    CoherenceSpec, FirstDirectionSpec, FirstVertexSpec, GridKind, MaterialSpec, MediumSpec,
+    ParticleSpec, PhaseSpec, SceneFile, SensorSpec, SourceSpec,
 };
 use serde_json::{Value, json};
 use speckle::estimators::{Coherence, EstimatorError, Pair, Scene, Sensor, Source};
-use speckle::medium::{Aabb, DVec3, Dimension, HomogeneousBox, Medium};
+use speckle::medium::{
+    Aabb, Concentration, DVec3, Dimension, HomogeneousBox, Material, Medium, ParticleMix,
+    ParticleType, TypeMix, VoxelGrid,
+};
 use speckle::paths::{FirstDirection, FirstVertex, TracerConfig};
-use speckle::phase::{Complex64, FlatTabulatedAmplitude, Phase, PhaseFunction, TabulatedAmplitude};
+use speckle::phase::{
+    Complex64, FlatTabulatedAmplitude, HgMixture, MieSphere, Phase, PhaseFunction,
+    TabulatedAmplitude,
+};
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -19,7 +26,7 @@ use std::sync::Arc;
 const MAX_ENDPOINTS: usize = 1 << 20;
 
 /// The scene as the library sees it.
-pub type SpeckleScene = Scene<HomogeneousBox, Phase>;
+pub type SpeckleScene = Scene<SceneMedium, Phase>;
 
 /// Command-line values that replace those of the scene file (before validation).
 #[derive(Debug, Clone, Default)]
@@ -78,6 +85,8 @@ pub struct Loaded {
     pub all_pairs: bool,
     /// The covariance/field coherence setting.
     pub coherence: Coherence,
+    /// Particle (Mie) and grid facts for the sidecars (`null` for a plain box).
+    pub medium_info: Value,
 }
 
 fn bad(field: impl Display, reason: impl Display) -> InputError {
@@ -383,7 +392,174 @@ fn check_name(name: &str) -> Result<(), InputError> {
     }
 }
 
-fn build_medium(m: &MediumSpec, dim: Dimension) -> Result<HomogeneousBox, InputError> {
+/// The medium of a scene, its phase functions (one per particle type) and a description of
+/// its particles or grid for the sidecars.
+pub struct BuiltMedium {
+    /// The medium.
+    pub medium: SceneMedium,
+    /// One phase function per particle type.
+    pub phases: Vec<Phase>,
+    /// Mie quantities per particle type, grid facts (JSON).
+    pub info: Value,
+}
+
+/// `sigma_s`, `sigma_a` from `sigma_s` (+ `sigma_a`) or `mean_free_path` (+ `albedo`);
+/// `prefix` names the table (`medium`, `medium.materials[2]`). A material may have
+/// `sigma_s = 0` (`allow_zero`).
+fn coefficients(
+    prefix: &str,
+    (sigma_s, sigma_a, mean_free_path, albedo): (Option<f64>, Option<f64>, Option<f64>, Option<f64>),
+    allow_zero: bool,
+) -> Result<(f64, f64), InputError> {
+    let either = "give either sigma_s (and optionally sigma_a) or mean_free_path (and optionally \
+                  albedo)";
+    match (sigma_s, sigma_a, mean_free_path, albedo) {
+        (Some(s), a, None, None) => {
+            let field = format!("{prefix}.sigma_s");
+            let s = if allow_zero {
+                non_negative(field, s)?
+            } else {
+                positive(field, s)?
+            };
+            let a = non_negative(format!("{prefix}.sigma_a"), a.unwrap_or(0.0))?;
+            Ok((s, a))
+        }
+        (None, None, Some(l), a) => {
+            let l = positive(format!("{prefix}.mean_free_path"), l)?;
+            let a = a.unwrap_or(1.0);
+            if !(a.is_finite() && a > 0.0 && a <= 1.0) {
+                return Err(bad(
+                    format!("{prefix}.albedo"),
+                    format!("must be finite and in (0, 1] (got {a})"),
+                ));
+            }
+            Ok((a / l, (1.0 - a) / l))
+        }
+        (None, None, None, _) => Err(bad(prefix, format!("no coefficients: {either}"))),
+        (None, Some(_), None, _) => Err(bad(
+            format!("{prefix}.sigma_s"),
+            format!("missing (sigma_a alone is not a medium): {either}"),
+        )),
+        (Some(_), _, Some(_), _) | (None, Some(_), Some(_), _) => Err(bad(
+            format!("{prefix}.mean_free_path"),
+            format!("cannot be combined with sigma_s/sigma_a: {either}"),
+        )),
+        (Some(_), _, None, Some(_)) => Err(bad(
+            format!("{prefix}.albedo"),
+            format!("cannot be combined with sigma_s: {either}"),
+        )),
+    }
+}
+
+/// Mie particles: the mix and one tabulated amplitude per type.
+fn build_particles(
+    list: &[ParticleSpec],
+    host_sigma_a: f64,
+    host_index: f64,
+    vacuum_wavelength: f64,
+    dim: Dimension,
+) -> Result<(ParticleMix, Vec<Phase>, Value), InputError> {
+    if dim == Dimension::Two {
+        return Err(bad(
+            "medium.particles",
+            "Mie spheres are 3D particles; a flatland medium takes coefficients",
+        ));
+    }
+    if list.is_empty() {
+        return Err(bad("medium.particles", "needs at least one particle type"));
+    }
+    let mut types = Vec::with_capacity(list.len());
+    let mut phases = Vec::with_capacity(list.len());
+    let mut info = Vec::with_capacity(list.len());
+    for (i, p) in list.iter().enumerate() {
+        let field = |k: &str| format!("medium.particles[{i}].{k}");
+        let radius = positive(field("radius"), p.radius)?;
+        let m = Complex64::new(
+            positive(field("index[0]"), p.index[0])?,
+            non_negative(field("index[1]"), p.index[1])?,
+        );
+        let mie = MieSphere::new(radius, m, host_index, vacuum_wavelength)
+            .map_err(|e| bad(format!("medium.particles[{i}]"), e))?;
+        let concentration = match (p.number_density, p.volume_fraction) {
+            (Some(n), None) => Concentration::NumberDensity(positive(field("number_density"), n)?),
+            (None, Some(f)) => {
+                Concentration::VolumeFraction(positive(field("volume_fraction"), f)?)
+            }
+            _ => {
+                return Err(bad(
+                    format!("medium.particles[{i}]"),
+                    "give exactly one of number_density and volume_fraction",
+                ));
+            }
+        };
+        let angles = p.angles.unwrap_or_else(|| mie.recommended_angles());
+        let table = mie
+            .to_tabulated(angles)
+            .map_err(|e| bad(field("angles"), e))?;
+        info.push(json!({
+            "size_parameter": mie.size_parameter(),
+            "q_ext": mie.q_ext(), "q_sca": mie.q_sca(), "q_abs": mie.q_abs(),
+            "c_sca": mie.c_sca(), "c_abs": mie.c_abs(), "asymmetry": mie.asymmetry(),
+            "table_angles": angles, "table_mean_cosine": table.mean_cosine(),
+        }));
+        types.push(ParticleType::from_mie(&mie, concentration));
+        phases.push(Phase::Tabulated(Arc::new(table)));
+    }
+    let mix = ParticleMix::new(types, host_sigma_a).map_err(|e| bad_medium(&e))?;
+    for (k, v) in info.iter_mut().enumerate() {
+        v["number_density"] = json!(mix.number_densities()[k]);
+        v["volume_fraction"] = json!(mix.volume_fractions()[k]);
+        v["beta"] = json!(mix.beta()[k]);
+    }
+    let info = json!({"particles": info, "sigma_s": mix.sigma_s(), "sigma_a": mix.sigma_a()});
+    Ok((mix, phases, info))
+}
+
+/// A medium error, with the library's field names under `medium.`.
+fn bad_medium(e: &speckle::medium::MediumError) -> InputError {
+    let text = e.to_string();
+    if text.starts_with("particles") {
+        InputError(format!("medium.{text}"))
+    } else {
+        InputError(format!("medium: {text}"))
+    }
+}
+
+/// Reads a grid `.npy` and checks its shape against the dimension; returns `[nx, ny, nz]`.
+fn read_grid(
+    file: &Path,
+    base: &Path,
+    dim: Dimension,
+) -> Result<([usize; 3], crate::npy::RealArray), InputError> {
+    let path = base.join(file);
+    let shown = path.display().to_string();
+    let bytes = std::fs::read(&path)
+        .map_err(|e| bad("medium.grid.file", format!("cannot read {shown}: {e}")))?;
+    let a = crate::npy::decode_real(&bytes)
+        .map_err(|e| bad("medium.grid.file", format!("{shown}: {e}")))?;
+    let dims = match (dim, a.shape.as_slice()) {
+        (Dimension::Three, &[nx, ny, nz]) => [nx, ny, nz],
+        (Dimension::Two, &[nx, ny]) => [nx, ny, 1],
+        (d, s) => {
+            return Err(bad(
+                "medium.grid.file",
+                format!(
+                    "{shown}: a {d} grid needs an array of shape {} (got {s:?})",
+                    if d == Dimension::Three { "(nx, ny, nz)" } else { "(nx, ny)" }
+                ),
+            ));
+        }
+    };
+    Ok((dims, a))
+}
+
+fn build_medium(
+    m: &MediumSpec,
+    phase: Option<&PhaseSpec>,
+    base: &Path,
+    vacuum_wavelength: f64,
+    dim: Dimension,
+) -> Result<BuiltMedium, InputError> {
     for (i, s) in m.size.iter().enumerate().take(dim.count() as usize) {
         positive(format!("medium.size[{i}]"), *s).map_err(|e| match (i, *s == 0.0) {
             (2, true) => InputError(format!("{} (for flatland, set dimension = 2)", e.0)),
@@ -400,57 +576,165 @@ fn build_medium(m: &MediumSpec, dim: Dimension) -> Result<HomogeneousBox, InputE
         }
     }
     .map_err(|e| bad("medium", e))?;
-    let either = "give either sigma_s (and optionally sigma_a) or mean_free_path (and optionally \
-                  albedo)";
-    let medium = match (m.sigma_s, m.sigma_a, m.mean_free_path, m.albedo) {
-        (Some(s), a, None, None) => {
-            let s = positive("medium.sigma_s", s)?;
-            let a = non_negative("medium.sigma_a", a.unwrap_or(0.0))?;
-            HomogeneousBox::new(b, s, a)
+    let host_index = positive("medium.host_index", m.host_index.unwrap_or(1.0))?;
+    let coefficients_given =
+        m.sigma_s.is_some() || m.mean_free_path.is_some() || m.albedo.is_some();
+    let kind = m.grid.as_ref().map(|g| g.kind);
+    if m.materials.is_some() && kind != Some(GridKind::Materials) {
+        return Err(bad(
+            "medium.materials",
+            "only a grid of kind \"materials\" takes materials",
+        ));
+    }
+    if kind == Some(GridKind::Materials) {
+        if coefficients_given || m.sigma_a.is_some() || m.particles.is_some() {
+            return Err(bad(
+                "medium.grid",
+                "a materials grid takes its coefficients from [[medium.materials]]; remove \
+                 sigma_s, sigma_a, mean_free_path, albedo and particles from [medium]",
+            ));
         }
-        (None, None, Some(l), a) => {
-            let l = positive("medium.mean_free_path", l)?;
-            let a = a.unwrap_or(1.0);
-            if !(a.is_finite() && a > 0.0 && a <= 1.0) {
+        if phase.is_some() {
+            return Err(bad(
+                "phase",
+                "a materials grid takes one phase function per material ([[medium.materials]] \
+                 phase)",
+            ));
+        }
+        let list = m.materials.as_deref().unwrap_or_default();
+        return build_material_grid(m, list, b, base, dim);
+    }
+    // One material: coefficients or particles, then a box or a density grid.
+    let (material, host_sigma_a, phases, info) = match &m.particles {
+        Some(list) => {
+            if coefficients_given {
                 return Err(bad(
-                    "medium.albedo",
-                    format!("must be finite and in (0, 1] (got {a})"),
+                    "medium.particles",
+                    "cannot be combined with sigma_s, mean_free_path or albedo (sigma_a, if \
+                     given, is the host's absorption)",
                 ));
             }
-            HomogeneousBox::from_mean_free_path(b, l, a)
+            if phase.is_some() {
+                return Err(bad(
+                    "phase",
+                    "cannot be combined with medium.particles: each particle type's amplitude \
+                     comes from Mie theory",
+                ));
+            }
+            let host = non_negative("medium.sigma_a", m.sigma_a.unwrap_or(0.0))?;
+            let (mix, phases, info) =
+                build_particles(list, host, host_index, vacuum_wavelength, dim)?;
+            (mix.particle_material(), host, phases, info)
         }
-        (None, None, None, _) => return Err(bad("medium", format!("no coefficients: {either}"))),
-        (None, Some(_), None, _) => {
-            return Err(bad(
-                "medium.sigma_s",
-                format!("missing (sigma_a alone is not a medium): {either}"),
-            ));
-        }
-        (Some(_), _, Some(_), _) | (None, Some(_), Some(_), _) => {
-            return Err(bad(
-                "medium.mean_free_path",
-                format!("cannot be combined with sigma_s/sigma_a: {either}"),
-            ));
-        }
-        (Some(_), _, None, Some(_)) => {
-            return Err(bad(
-                "medium.albedo",
-                format!("cannot be combined with sigma_s: {either}"),
-            ));
+        None => {
+            let (s, a) = coefficients(
+                "medium",
+                (m.sigma_s, m.sigma_a, m.mean_free_path, m.albedo),
+                false,
+            )?;
+            let phase = build_phase(phase.unwrap_or(&PhaseSpec::Isotropic {}), "phase", base, dim)?;
+            (Material::single(s, a), 0.0, vec![phase], Value::Null)
         }
     };
-    medium.map_err(|e| bad("medium", e))
+    let medium = match &m.grid {
+        None => {
+            let b = HomogeneousBox::with_types(
+                b,
+                material.sigma_s,
+                material.sigma_a + host_sigma_a,
+                material.types.beta().to_vec(),
+            )
+            .map_err(|e| bad_medium(&e))?;
+            SceneMedium::Box(b)
+        }
+        Some(g) => {
+            let (dims, a) = read_grid(&g.file, base, dim)?;
+            let grid = VoxelGrid::from_densities(b, dims, a.data, material, host_sigma_a)
+                .map_err(|e| bad_grid(&e))?;
+            SceneMedium::Grid(grid)
+        }
+    };
+    Ok(BuiltMedium {
+        medium,
+        phases,
+        info,
+    })
 }
 
-fn build_phase(p: &PhaseSpec, base: &Path, dim: Dimension) -> Result<Phase, InputError> {
+/// A grid error, naming the grid file's voxel.
+fn bad_grid(e: &speckle::medium::MediumError) -> InputError {
+    InputError(format!("medium.grid: {e}"))
+}
+
+fn build_material_grid(
+    m: &MediumSpec,
+    list: &[MaterialSpec],
+    b: Aabb,
+    base: &Path,
+    dim: Dimension,
+) -> Result<BuiltMedium, InputError> {
+    if list.is_empty() {
+        return Err(bad(
+            "medium.materials",
+            "a materials grid needs at least one [[medium.materials]] entry",
+        ));
+    }
+    let mut materials = Vec::with_capacity(list.len());
+    let mut phases = Vec::with_capacity(list.len());
+    for (i, mat) in list.iter().enumerate() {
+        let prefix = format!("medium.materials[{i}]");
+        let (s, a) = coefficients(
+            &prefix,
+            (mat.sigma_s, mat.sigma_a, mat.mean_free_path, mat.albedo),
+            true,
+        )?;
+        // Material i scatters with phase function i.
+        let types = TypeMix::single(i).map_err(|e| bad(&prefix, e))?;
+        materials.push(Material::new(s, a, types));
+        phases.push(build_phase(&mat.phase, &format!("{prefix}.phase"), base, dim)?);
+    }
+    let grid = m.grid.as_ref().expect("a materials grid");
+    let (dims, a) = read_grid(&grid.file, base, dim)?;
+    if !a.integer {
+        return Err(bad(
+            "medium.grid.file",
+            "a materials grid needs an integer array of material ids",
+        ));
+    }
+    let mut ids = Vec::with_capacity(a.data.len());
+    for (k, &v) in a.data.iter().enumerate() {
+        if !(0.0..=f64::from(u32::MAX)).contains(&v) {
+            return Err(bad(
+                "medium.grid.file",
+                format!("voxel {k}: material id {v} is negative or too large"),
+            ));
+        }
+        ids.push(v as u32);
+    }
+    let grid = VoxelGrid::from_materials(b, dims, ids, materials).map_err(|e| bad_grid(&e))?;
+    Ok(BuiltMedium {
+        medium: SceneMedium::Grid(grid),
+        phases,
+        info: Value::Null,
+    })
+}
+
+/// The phase function of `p`; `field` names the table (`phase`, `medium.materials[1].phase`).
+fn build_phase(
+    p: &PhaseSpec,
+    field: &str,
+    base: &Path,
+    dim: Dimension,
+) -> Result<Phase, InputError> {
+    let f = |k: &str| format!("{field}.{k}");
     match p {
         PhaseSpec::Isotropic {} => Ok(Phase::isotropic(dim)),
         PhaseSpec::Hg { g } => {
             if g.is_finite() && g.abs() < 1.0 {
-                Phase::hg_in(dim, *g).map_err(|e| bad("phase.g", e))
+                Phase::hg_in(dim, *g).map_err(|e| bad(f("g"), e))
             } else {
                 Err(bad(
-                    "phase.g",
+                    f("g"),
                     format!("must be finite with |g| < 1 (got {g})"),
                 ))
             }
@@ -461,7 +745,7 @@ fn build_phase(p: &PhaseSpec, base: &Path, dim: Dimension) -> Result<Phase, Inpu
                 Some(name) => {
                     let text = crate::examples::data(name).ok_or_else(|| {
                         bad(
-                            "phase.file",
+                            f("file"),
                             format!(
                                 "no embedded table called {name:?}; the embedded tables are: {}",
                                 crate::examples::data_names().join(", ")
@@ -474,11 +758,50 @@ fn build_phase(p: &PhaseSpec, base: &Path, dim: Dimension) -> Result<Phase, Inpu
                     let path = base.join(file);
                     let shown = path.display().to_string();
                     let text = std::fs::read_to_string(&path)
-                        .map_err(|e| bad("phase.file", format!("cannot read {shown}: {e}")))?;
+                        .map_err(|e| bad(f("file"), format!("cannot read {shown}: {e}")))?;
                     (text, shown)
                 }
             };
-            read_table(&text, &shown, dim).map_err(|e| bad("phase.file", e))
+            read_table(&text, &shown, dim).map_err(|e| bad(f("file"), e))
+        }
+        PhaseSpec::HgMixture { weights, g } => {
+            if dim == Dimension::Two {
+                return Err(bad(field, "hg_mixture is a 3D phase function"));
+            }
+            if weights.len() != g.len() {
+                return Err(bad(
+                    f("g"),
+                    format!(
+                        "needs one g per weight ({} weights, {} g values)",
+                        weights.len(),
+                        g.len()
+                    ),
+                ));
+            }
+            let lobes: Vec<(f64, f64)> = weights.iter().copied().zip(g.iter().copied()).collect();
+            let m = HgMixture::new(&lobes).map_err(|e| bad(field, e))?;
+            Ok(Phase::HgMixture(Arc::new(m)))
+        }
+        PhaseSpec::Vmf { gamma, alpha } => {
+            if dim == Dimension::Two {
+                return Err(bad(field, "vmf is a 3D amplitude function"));
+            }
+            if gamma.len() != alpha.len() {
+                return Err(bad(
+                    f("alpha"),
+                    format!(
+                        "needs one alpha per gamma ({} gamma, {} alpha values)",
+                        gamma.len(),
+                        alpha.len()
+                    ),
+                ));
+            }
+            let lobes = gamma.iter().copied().zip(alpha.iter().copied()).collect();
+            let m = speckle::vmf::VmfMixture::new(lobes).map_err(|e| bad(field, e))?;
+            let table = m
+                .to_tabulated(m.recommended_angles())
+                .map_err(|e| bad(field, e))?;
+            Ok(Phase::Tabulated(Arc::new(table)))
         }
     }
 }
@@ -490,7 +813,7 @@ const EMBEDDED: &str = "embedded:";
 /// nor a `#` comment is the header: `theta_rad,re,im`, `theta_deg,re,im` or (3D only)
 /// `mu,re,im`, with `re_s` and `im_s` accepted for `re` and `im`. Angles cover `[0, pi]` in 3D
 /// and the signed scattering angle over `[0, 2 pi]` in flatland.
-fn read_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String> {
+pub(crate) fn read_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String> {
     let mut lines = text
         .lines()
         .enumerate()
@@ -863,8 +1186,10 @@ fn build(
         }
     };
     let wavelength = positive("wavelength", file.wavelength)?;
-    let medium = build_medium(&file.medium, dim)?;
-    let phase = build_phase(&file.phase, base, dim)?;
+    let built = build_medium(&file.medium, file.phase.as_ref(), base, wavelength, dim)?;
+    let (medium, phases, medium_info) = (built.medium, built.phases, built.info);
+    // Light travels at the wavelength in the host.
+    let wavelength = wavelength / file.medium.host_index.unwrap_or(1.0);
     let bounds = *medium.bounds();
     let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
     let (sensors, sensor_desc, grid) = build_sensors(&mut file.sensors, &bounds)?;
@@ -1002,7 +1327,8 @@ fn build(
         first_direction,
         max_vertices,
     };
-    let scene = Scene::new(medium, phase, wavelength, sources, sensors, pairs, tracer).map_err(
+    let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs, tracer)
+        .map_err(
         |e| match e {
             EstimatorError::InvalidInput { field, reason } => bad(field, reason),
             EstimatorError::Path(p) => bad("render", p),
@@ -1019,6 +1345,7 @@ fn build(
         grid,
         all_pairs,
         coherence,
+        medium_info,
     })
 }
 
@@ -1068,24 +1395,63 @@ impl Loaded {
         let m = self.scene.medium();
         let size = m.bounds().size();
         let lambda = self.scene.wavelength();
-        json!({
+        let mut d = json!({
             "dimension": self.dimension().count(),
-            "sigma_s": m.scattering(),
-            "sigma_a": m.absorption(),
-            "sigma_t": m.extinction(),
-            "mean_free_path": m.mean_free_path(),
-            "albedo": m.scattering() / m.extinction(),
             "box_min": arr(m.bounds().min()),
             "box_max": arr(m.bounds().max()),
             "size_in_wavelengths": arr(size / lambda),
-            "optical_thickness_xyz": arr(size * m.extinction()),
             "scattering_volume": m.scattering_volume(),
+            "wavelength_in_host": lambda,
             "wavenumber": self.scene.wavenumber(),
+            "particle_types": m.particle_types(),
             "phase_mean_cosine": self.scene.phase().mean_cosine(),
+            "phase_mean_cosines": self.scene.phases().iter().map(|p| p.mean_cosine()).collect::<Vec<_>>(),
             "n_sources": self.n_sources(),
             "n_sensors": self.n_sensors(),
             "pairs": self.pairs(),
-        })
+            "medium_info": self.medium_info,
+        });
+        match m {
+            SceneMedium::Box(b) => {
+                d["medium_kind"] = json!("homogeneous box");
+                d["sigma_s"] = json!(b.scattering());
+                d["sigma_a"] = json!(b.absorption());
+                d["sigma_t"] = json!(b.extinction());
+                d["mean_free_path"] = json!(b.mean_free_path());
+                d["albedo"] = json!(b.scattering() / b.extinction());
+                d["optical_thickness_xyz"] = json!(arr(size * b.extinction()));
+            }
+            SceneMedium::Grid(g) => {
+                d["medium_kind"] = json!("voxel grid");
+                d["grid_dims"] = json!(g.dims());
+                d["voxel_size"] = json!(arr(g.voxel_size()));
+                d["majorant_sigma_t"] = json!(g.majorant());
+                d["tracking"] = json!("delta (Woodcock) flights, exact voxel-traversal \
+                                       transmittance");
+            }
+        }
+        d
+    }
+
+    /// The library scene on a homogeneous box, for the wave solver; refuses grids.
+    pub fn box_scene(&self) -> Result<Scene<HomogeneousBox, Phase>, InputError> {
+        let b = self.scene.medium().as_box().ok_or_else(|| {
+            bad(
+                "medium.grid",
+                "the wave solver needs a homogeneous box, not a voxel grid",
+            )
+        })?;
+        let s = &self.scene;
+        Scene::with_types(
+            b.clone(),
+            s.phases().to_vec(),
+            s.wavelength(),
+            s.sources().to_vec(),
+            s.sensors().to_vec(),
+            s.pairs().to_vec(),
+            s.tracer_config(),
+        )
+        .map_err(|e| bad("scene", e))
     }
 
     /// `(source, sensor)` of every pair, in order.

@@ -22,9 +22,10 @@ pub struct SceneFile {
     pub wavelength: f64,
     /// The medium.
     pub medium: MediumSpec,
-    /// The scatterers' phase function (isotropic when absent).
-    #[serde(default)]
-    pub phase: PhaseSpec,
+    /// The scatterers' phase function (isotropic when absent; not with `medium.particles`,
+    /// whose amplitudes come from Mie theory, nor with a materials grid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase: Option<PhaseSpec>,
     /// Illuminations, expanded in order (a generator entry adds several).
     #[serde(default)]
     pub sources: Vec<SourceSpec>,
@@ -68,10 +69,88 @@ pub struct MediumSpec {
     /// Single-scattering albedo `sigma_s / sigma_t` in `(0, 1]`, 1 when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo: Option<f64>,
+    /// Refractive index of the host (default 1): the scene's `wavelength` is the vacuum
+    /// wavelength and light travels at `wavelength / host_index` in the host; Mie particles
+    /// are computed relative to it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host_index: Option<f64>,
+    /// Particle types (Mie spheres) instead of coefficients: `sigma_s`, `sigma_a` and one
+    /// amplitude function per type follow from Mie theory (Eqs. 42-44); `sigma_a`, if given,
+    /// is the host's absorption.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub particles: Option<Vec<ParticleSpec>>,
+    /// A voxel grid: the box is split into the voxels of a `.npy` array.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<GridSpec>,
+    /// Materials of a `kind = "materials"` grid, indexed by the grid's integer ids.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub materials: Option<Vec<MaterialSpec>>,
+}
+
+/// One particle type of `[[medium.particles]]`: a Mie sphere.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    /// Radius (the scene's length unit).
+    pub radius: f64,
+    /// Refractive index relative to the host, `[re, im]` (`im >= 0` absorbs).
+    pub index: [f64; 2],
+    /// Particles per unit volume.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number_density: Option<f64>,
+    /// Fraction of the volume the particles fill (Eq. 42).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub volume_fraction: Option<f64>,
+    /// Nodes of the amplitude table (default: enough for the sphere's size).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angles: Option<usize>,
+}
+
+/// `[medium.grid]`: a voxel grid over the box, from a `.npy` array of shape `(nx, ny, nz)`
+/// (`(nx, ny)` in flatland), x slowest (NumPy's C order).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// The `.npy` file, relative to the scene file's directory.
+    pub file: PathBuf,
+    /// `"density"`: the medium's coefficients (or particle numbers) times each voxel's value;
+    /// `"materials"`: each voxel's integer value indexes `[[medium.materials]]`.
+    pub kind: GridKind,
+}
+
+/// `medium.grid.kind`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GridKind {
+    /// Densities scaling the medium's coefficients.
+    Density,
+    /// Material ids.
+    Materials,
+}
+
+/// One entry of `[[medium.materials]]`: coefficients as in `[medium]` and a phase function.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Scattering coefficient (0 for an absorbing or empty material).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_s: Option<f64>,
+    /// Absorption coefficient, 0 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_a: Option<f64>,
+    /// Mean free path `1 / sigma_t`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_free_path: Option<f64>,
+    /// Albedo, 1 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<f64>,
+    /// The material's phase function (isotropic when absent).
+    #[serde(default)]
+    pub phase: PhaseSpec,
 }
 
 /// The phase function.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PhaseSpec {
     /// Isotropic scattering.
@@ -87,6 +166,21 @@ pub enum PhaseSpec {
     Tabulated {
         /// The CSV file, or `embedded:NAME` for a table embedded in the binary.
         file: PathBuf,
+    },
+    /// A mixture of Henyey-Greenstein lobes (3D): `rho = sum w_l HG(g_l)`.
+    HgMixture {
+        /// Lobe weights (normalised to sum to one).
+        weights: Vec<f64>,
+        /// Lobe anisotropies, `|g| < 1`.
+        g: Vec<f64>,
+    },
+    /// A vMF-mixture amplitude `s = sum pi_m exp(gamma_m mu)` (3D), as written by
+    /// `speckle fit-phase` (its `.vmf.toml`).
+    Vmf {
+        /// Signed concentrations `gamma_m` (negative: a backward lobe).
+        gamma: Vec<f64>,
+        /// Positive weights `alpha_m` (of the normalised lobes).
+        alpha: Vec<f64>,
     },
 }
 

@@ -68,7 +68,10 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
                 .uniform_sigma_t()
                 .ok_or_else(|| EstimatorError::InvalidInput {
                     field: "medium".into(),
-                    reason: "the far-field to far-field mean needs a homogeneous medium".into(),
+                    reason: "the far-field to far-field mean needs a medium of uniform \
+                             extinction (its closed form integrates over a homogeneous box); \
+                             render fields without the mean (render.add_mean = false)"
+                        .into(),
                 })?;
             // n sqrt(c_s) s(1), fixed by the optical theorem.
             let forward = match m.dimension() {
