@@ -53,7 +53,7 @@ impl RunOptions {
 const MAX_COVARIANCE_BYTES: f64 = 8.0 * (1u64 << 30) as f64;
 
 /// Maps a library error to the binary's error kinds (bad input, cancelled, other).
-fn estimator_error(e: EstimatorError) -> anyhow::Error {
+pub(crate) fn estimator_error(e: EstimatorError) -> anyhow::Error {
     match e {
         EstimatorError::Cancelled => Cancelled.into(),
         EstimatorError::InvalidInput { field, reason } => {
@@ -930,19 +930,30 @@ pub fn check(l: &Loaded) {
             format!("vMF mixture of {} lobes", gamma.len())
         }
     };
-    let phase = match (&l.file.phase, &l.file.medium.particles, &l.file.medium.materials) {
+    let phase = match (
+        &l.file.phase,
+        &l.file.medium.particles,
+        &l.file.medium.materials,
+    ) {
         (Some(p), _, _) => describe(p),
         (None, Some(p), _) => format!("Mie, one table per particle type ({})", p.len()),
         (None, None, Some(m)) => format!(
             "per material: {}",
-            m.iter().map(|m| describe(&m.phase)).collect::<Vec<_>>().join("; ")
+            m.iter()
+                .map(|m| describe(&m.phase))
+                .collect::<Vec<_>>()
+                .join("; ")
         ),
         (None, None, None) => describe(&crate::spec::PhaseSpec::Isotropic {}),
     };
     say!(
         "  phase                {phase} (mean cosine {:.4}{})",
         d["phase_mean_cosine"].as_f64().unwrap_or(0.0),
-        if l.scene.phases().len() > 1 { " for type 0" } else { "" }
+        if l.scene.phases().len() > 1 {
+            " for type 0"
+        } else {
+            ""
+        }
     );
     say!("  sources              {}", l.n_sources());
     say!(

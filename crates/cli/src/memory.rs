@@ -39,22 +39,24 @@
 //!   errors six-fold. The cost of a study does not depend on `k L`, only on the optical depths.
 //! - Outputs are staged and written all at once ([`Staged`]); an interrupted run writes nothing.
 
+use crate::InputError;
+use crate::commands::estimator_error;
 use crate::npy::encode_f8;
 use crate::output::Staged;
 use crate::progress::{CliProgress, interrupted};
+use crate::scene::{bad, check_name, positive};
 use crate::spec::CoherenceSpec;
-use crate::{Cancelled, InputError};
 use clap::Args;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use speckle::estimators::{
-    Coherence, CovarianceOptions, EstimatorError, Pair, Scene, Sensor, Source, render_covariance,
+    Coherence, CovarianceOptions, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::paths::{FirstDirection, FirstVertex, TracerConfig};
 use speckle::phase::{Complex64, MieSphere, Phase, PhaseFunction};
 use std::f64::consts::{PI, TAU};
-use std::fmt::{Display, Write as _};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -267,18 +269,6 @@ pub struct StudyOverrides {
     pub out: Option<PathBuf>,
 }
 
-fn bad(field: impl Display, reason: impl Display) -> InputError {
-    InputError(format!("{field}: {reason}"))
-}
-
-fn positive(field: impl Display, v: f64) -> Result<f64, InputError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(bad(field, format!("must be finite and > 0 (got {v})")))
-    }
-}
-
 /// Reads the TOML document: syntax and type errors name the key path and the line.
 fn parse(text: &str) -> Result<StudyFile, InputError> {
     let de = toml::Deserializer::parse(text)
@@ -343,26 +333,6 @@ pub fn load_str(
     validate(file, origin, default_name).map_err(with_origin)
 }
 
-fn check_name(name: &str) -> Result<(), InputError> {
-    let ok = !name.is_empty()
-        && !name.starts_with('.')
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
-    if ok {
-        Ok(())
-    } else {
-        Err(bad(
-            "name",
-            format!(
-                "must be non-empty, not start with '.', and use only letters, digits, '_', '-' \
-                 and '.' (got {name:?})"
-            ),
-        ))
-    }
-}
-
-/// Exactly one of the named options is set; returns its index.
 fn exactly_one(names: &[&str], set: &[bool]) -> Result<usize, InputError> {
     let chosen: Vec<usize> = (0..names.len()).filter(|&i| set[i]).collect();
     match chosen[..] {
@@ -673,17 +643,6 @@ impl Study {
 /// The unit direction tilted from +z towards +x by `theta` (about +y).
 fn tilted(theta: f64) -> DVec3 {
     DVec3::new(theta.sin(), 0.0, theta.cos())
-}
-
-/// Maps a library error to the binary's error kinds.
-fn estimator_error(e: EstimatorError) -> anyhow::Error {
-    match e {
-        EstimatorError::Cancelled => Cancelled.into(),
-        EstimatorError::InvalidInput { field, reason } => {
-            InputError(format!("{field}: {reason}")).into()
-        }
-        other => anyhow::Error::new(other).context("render failed"),
-    }
 }
 
 /// One wavelength: the sphere and the slab's coefficients.

@@ -89,11 +89,13 @@ pub struct Loaded {
     pub medium_info: Value,
 }
 
-fn bad(field: impl Display, reason: impl Display) -> InputError {
+/// An input error naming `field`.
+pub(crate) fn bad(field: impl Display, reason: impl Display) -> InputError {
     InputError(format!("{field}: {reason}"))
 }
 
-fn positive(field: impl Display, v: f64) -> Result<f64, InputError> {
+/// `v` if finite and > 0, else an error naming `field`.
+pub(crate) fn positive(field: impl Display, v: f64) -> Result<f64, InputError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -373,7 +375,8 @@ fn apply(file: &mut SceneFile, o: &Overrides) {
     out.png_realizations = o.png_realizations.unwrap_or(out.png_realizations);
 }
 
-fn check_name(name: &str) -> Result<(), InputError> {
+/// Checks an output prefix (`name`).
+pub(crate) fn check_name(name: &str) -> Result<(), InputError> {
     let ok = !name.is_empty()
         && !name.starts_with('.')
         && name
@@ -408,7 +411,12 @@ pub struct BuiltMedium {
 /// `sigma_s = 0` (`allow_zero`).
 fn coefficients(
     prefix: &str,
-    (sigma_s, sigma_a, mean_free_path, albedo): (Option<f64>, Option<f64>, Option<f64>, Option<f64>),
+    (sigma_s, sigma_a, mean_free_path, albedo): (
+        Option<f64>,
+        Option<f64>,
+        Option<f64>,
+        Option<f64>,
+    ),
     allow_zero: bool,
 ) -> Result<(f64, f64), InputError> {
     let either = "give either sigma_s (and optionally sigma_a) or mean_free_path (and optionally \
@@ -545,7 +553,11 @@ fn read_grid(
                 "medium.grid.file",
                 format!(
                     "{shown}: a {d} grid needs an array of shape {} (got {s:?})",
-                    if d == Dimension::Three { "(nx, ny, nz)" } else { "(nx, ny)" }
+                    if d == Dimension::Three {
+                        "(nx, ny, nz)"
+                    } else {
+                        "(nx, ny)"
+                    }
                 ),
             ));
         }
@@ -632,7 +644,12 @@ fn build_medium(
                 (m.sigma_s, m.sigma_a, m.mean_free_path, m.albedo),
                 false,
             )?;
-            let phase = build_phase(phase.unwrap_or(&PhaseSpec::Isotropic {}), "phase", base, dim)?;
+            let phase = build_phase(
+                phase.unwrap_or(&PhaseSpec::Isotropic {}),
+                "phase",
+                base,
+                dim,
+            )?;
             (Material::single(s, a), 0.0, vec![phase], Value::Null)
         }
     };
@@ -691,7 +708,12 @@ fn build_material_grid(
         // Material i scatters with phase function i.
         let types = TypeMix::single(i).map_err(|e| bad(&prefix, e))?;
         materials.push(Material::new(s, a, types));
-        phases.push(build_phase(&mat.phase, &format!("{prefix}.phase"), base, dim)?);
+        phases.push(build_phase(
+            &mat.phase,
+            &format!("{prefix}.phase"),
+            base,
+            dim,
+        )?);
     }
     let grid = m.grid.as_ref().expect("a materials grid");
     let (dims, a) = read_grid(&grid.file, base, dim)?;
@@ -1328,13 +1350,11 @@ fn build(
         max_vertices,
     };
     let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs, tracer)
-        .map_err(
-        |e| match e {
+        .map_err(|e| match e {
             EstimatorError::InvalidInput { field, reason } => bad(field, reason),
             EstimatorError::Path(p) => bad("render", p),
             other => bad("scene", other),
-        },
-    )?;
+        })?;
     Ok(Loaded {
         file,
         name,
@@ -1426,8 +1446,10 @@ impl Loaded {
                 d["grid_dims"] = json!(g.dims());
                 d["voxel_size"] = json!(arr(g.voxel_size()));
                 d["majorant_sigma_t"] = json!(g.majorant());
-                d["tracking"] = json!("delta (Woodcock) flights, exact voxel-traversal \
-                                       transmittance");
+                d["tracking"] = json!(
+                    "delta (Woodcock) flights, exact voxel-traversal \
+                                       transmittance"
+                );
             }
         }
         d
