@@ -184,35 +184,7 @@ pub trait Medium: Send + Sync {
 pub(crate) mod testing {
     //! Shared helpers of the statistical tests.
 
-    /// A fixed-seed SplitMix64 stream of uniform variates in `[0, 1)` (keeps the crate free of
-    /// an RNG dependency).
-    pub fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
-
-    /// `sqrt(n) * D`, the Kolmogorov-Smirnov distance of the samples `xs` from the CDF `f`.
-    pub fn ks_distance(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {
-        xs.sort_by(f64::total_cmp);
-        let n = xs.len();
-        let mut d: f64 = 0.0;
-        for (i, &x) in xs.iter().enumerate() {
-            let fx = f(x);
-            d = d
-                .max((fx - i as f64 / n as f64).abs())
-                .max(((i + 1) as f64 / n as f64 - fx).abs());
-        }
-        (n as f64).sqrt() * d
-    }
-
-    /// Critical value of `sqrt(n) D` at significance 0.001 (Kolmogorov distribution).
-    pub const KS_CRITICAL_0_001: f64 = 1.95;
+    pub use speckle_phase::testing::{KS_CRITICAL_0_001, ks_distance, uniform_stream};
 
     /// Pearson's statistic of `counts` against the probabilities `p` (cells with `p = 0` must
     /// be empty and are skipped); returns it with the degrees of freedom.

@@ -273,9 +273,11 @@ impl Phase {
     }
 }
 
-#[cfg(test)]
-pub(crate) mod testing {
-    //! Shared checks every phase function must pass.
+#[cfg(any(test, feature = "testing"))]
+pub mod testing {
+    //! Helpers of the statistical tests of this workspace (uniform streams, Kolmogorov-Smirnov
+    //! statistics, moments by quadrature), shared checks every phase function must pass;
+    //! compiled for this crate's tests and, with the `testing` feature, for other crates' tests.
     use super::*;
 
     /// `int rho dOmega` and `int mu rho dOmega` by composite Simpson on `mu` with `n` panels.

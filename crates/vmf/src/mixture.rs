@@ -352,17 +352,7 @@ mod tests {
         2.0 * PI * 0.5 * h * sum
     }
 
-    /// SplitMix64 uniform variates in `[0, 1)`.
-    fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
+    use speckle_phase::testing::{ks_distance as ks, uniform_stream};
 
     /// The CDF of the cosine under `density`, by Gauss-Legendre quadrature in `theta`
     /// (`P(cos theta <= mu)`, accumulated from `theta = pi`), exact to the quadrature error also
@@ -402,18 +392,6 @@ mod tests {
             let partial = Self::piece(self.density, theta, upper);
             (self.tail[p + 1] + partial) / self.tail[0]
         }
-    }
-
-    /// `sqrt(n) D`, the Kolmogorov-Smirnov statistic of `xs` against the CDF `f`.
-    fn ks(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {
-        xs.sort_by(f64::total_cmp);
-        let n = xs.len() as f64;
-        let mut d: f64 = 0.0;
-        for (i, &x) in xs.iter().enumerate() {
-            let fx = f(x);
-            d = d.max(fx - i as f64 / n).max((i + 1) as f64 / n - fx);
-        }
-        n.sqrt() * d
     }
 
     /// 0.1% critical value of `sqrt(n) D` (Kolmogorov distribution, large n): five fixed-seed
