@@ -61,9 +61,8 @@ fn slab() -> Aabb {
 #[test]
 fn constant_grid_gives_the_homogeneous_covariance() {
     let ids = vec![0u32; 5 * 4 * 3];
-    let grid =
-        VoxelGrid::from_materials(slab(), [5, 4, 3], ids, vec![Material::single(0.9, 0.1)])
-            .unwrap();
+    let grid = VoxelGrid::from_materials(slab(), [5, 4, 3], ids, vec![Material::single(0.9, 0.1)])
+        .unwrap();
     let boxed = HomogeneousBox::new(slab(), 0.9, 0.1).unwrap();
     let o = |seed| CovarianceOptions {
         paths: 400_000,
@@ -142,7 +141,8 @@ fn composite(a: f64, b: f64, panels: usize) -> Vec<(f64, f64)> {
     (0..panels)
         .flat_map(|p| {
             let c = a + (p as f64 + 0.5) * h;
-            GL4.iter().map(move |&(x, w)| (c + 0.5 * h * x, 0.5 * h * w))
+            GL4.iter()
+                .map(move |&(x, w)| (c + 0.5 * h * x, 0.5 * h * w))
         })
         .collect()
 }

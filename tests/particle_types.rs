@@ -63,12 +63,33 @@ fn typed_scene(
     ends: (Vec<Source>, Vec<Sensor>, Vec<Pair>),
 ) -> Scene<HomogeneousBox, Phase> {
     let m = HomogeneousBox::with_types(slab(), SIGMA_S, SIGMA_A, BETA.to_vec()).unwrap();
-    Scene::with_types(m, phases, LAMBDA, ends.0, ends.1, ends.2, TracerConfig::default()).unwrap()
+    Scene::with_types(
+        m,
+        phases,
+        LAMBDA,
+        ends.0,
+        ends.1,
+        ends.2,
+        TracerConfig::default(),
+    )
+    .unwrap()
 }
 
-fn single_scene(phase: Phase, ends: (Vec<Source>, Vec<Sensor>, Vec<Pair>)) -> Scene<HomogeneousBox, Phase> {
+fn single_scene(
+    phase: Phase,
+    ends: (Vec<Source>, Vec<Sensor>, Vec<Pair>),
+) -> Scene<HomogeneousBox, Phase> {
     let m = HomogeneousBox::new(slab(), SIGMA_S, SIGMA_A).unwrap();
-    Scene::new(m, phase, LAMBDA, ends.0, ends.1, ends.2, TracerConfig::default()).unwrap()
+    Scene::new(
+        m,
+        phase,
+        LAMBDA,
+        ends.0,
+        ends.1,
+        ends.2,
+        TracerConfig::default(),
+    )
+    .unwrap()
 }
 
 fn two_types() -> Vec<Phase> {

@@ -241,7 +241,12 @@ struct MieArgs {
     #[arg(long, value_name = "M")]
     index: f64,
     /// Imaginary part of the relative index (absorption, >= 0).
-    #[arg(long, value_name = "K", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     index_imag: f64,
     /// Refractive index of the host medium.
     #[arg(long, value_name = "N", default_value_t = 1.0)]
@@ -278,7 +283,12 @@ struct FitArgs {
     #[arg(long, value_name = "M")]
     index: Option<f64>,
     /// Mie: imaginary part of the relative refractive index.
-    #[arg(long, value_name = "K", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "K",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     index_imag: f64,
     /// Mie: host refractive index.
     #[arg(long, value_name = "N", default_value_t = 1.0)]
@@ -318,9 +328,9 @@ impl FitArgs {
                     self.index_imag,
                 ),
                 host_index: self.host_index,
-                wavelength: self.wavelength.ok_or_else(|| {
-                    InputError("--wavelength: needed with --mie-radius".into())
-                })?,
+                wavelength: self
+                    .wavelength
+                    .ok_or_else(|| InputError("--wavelength: needed with --mie-radius".into()))?,
             },
             (None, None, Some(t)) => fit::Target::Table(t),
             _ => {

@@ -132,7 +132,10 @@ pub fn decode_real(bytes: &[u8]) -> Result<RealArray, String> {
         .split(',')
         .map(str::trim)
         .filter(|t| !t.is_empty())
-        .map(|t| t.parse::<usize>().map_err(|_| format!("bad .npy shape entry {t:?}")))
+        .map(|t| {
+            t.parse::<usize>()
+                .map_err(|_| format!("bad .npy shape entry {t:?}"))
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let n = shape
         .iter()
@@ -145,7 +148,10 @@ pub fn decode_real(bytes: &[u8]) -> Result<RealArray, String> {
         let mut c = descr.chars();
         let order = c.next().ok_or("empty .npy dtype")?;
         let kind = c.next().ok_or("bad .npy dtype")?;
-        let size: usize = c.as_str().parse().map_err(|_| format!("bad .npy dtype {descr:?}"))?;
+        let size: usize = c
+            .as_str()
+            .parse()
+            .map_err(|_| format!("bad .npy dtype {descr:?}"))?;
         (order, kind, size)
     };
     let big = match order {
@@ -156,11 +162,19 @@ pub fn decode_real(bytes: &[u8]) -> Result<RealArray, String> {
     let convert: fn(&[u8], bool) -> f64 = match (kind, size) {
         ('f', 8) => |b, big| {
             let a: [u8; 8] = b.try_into().expect("8 bytes");
-            if big { f64::from_be_bytes(a) } else { f64::from_le_bytes(a) }
+            if big {
+                f64::from_be_bytes(a)
+            } else {
+                f64::from_le_bytes(a)
+            }
         },
         ('f', 4) => |b, big| {
             let a: [u8; 4] = b.try_into().expect("4 bytes");
-            f64::from(if big { f32::from_be_bytes(a) } else { f32::from_le_bytes(a) })
+            f64::from(if big {
+                f32::from_be_bytes(a)
+            } else {
+                f32::from_le_bytes(a)
+            })
         },
         ('i', 1..=8) => |b, big| {
             let mut a = [0u8; 8];
@@ -184,7 +198,10 @@ pub fn decode_real(bytes: &[u8]) -> Result<RealArray, String> {
             ));
         }
     };
-    if !matches!((kind, size), ('f', 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1)) {
+    if !matches!(
+        (kind, size),
+        ('f', 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1)
+    ) {
         return Err(format!("unsupported .npy dtype {descr:?}"));
     }
     let body = &bytes[start + len..];
@@ -236,7 +253,10 @@ mod tests {
         // Our own float64 writer round-trips.
         let data: Vec<f64> = (0..24).map(|i| i as f64 * 0.5 - 3.0).collect();
         let a = decode_real(&encode_f8(&[2, 3, 4], &data)).unwrap();
-        assert_eq!((a.shape.clone(), a.data.clone(), a.integer), (vec![2, 3, 4], data, false));
+        assert_eq!(
+            (a.shape.clone(), a.data.clone(), a.integer),
+            (vec![2, 3, 4], data, false)
+        );
         // Hand-made headers: int16 little-endian C order, uint8, big-endian int32, Fortran f4.
         let make = |descr: &str, fortran: bool, shape: &str, body: &[u8]| {
             let dict = format!(
@@ -249,13 +269,19 @@ mod tests {
             v.extend_from_slice(body);
             v
         };
-        let i2: Vec<u8> = [-2i16, 7, 300].iter().flat_map(|x| x.to_le_bytes()).collect();
+        let i2: Vec<u8> = [-2i16, 7, 300]
+            .iter()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
         let a = decode_real(&make("<i2", false, "(3,)", &i2)).unwrap();
         assert_eq!((a.data, a.integer), (vec![-2.0, 7.0, 300.0], true));
         let a = decode_real(&make("|u1", false, "(2, 1)", &[0, 255])).unwrap();
         assert_eq!(a.data, vec![0.0, 255.0]);
         let be: Vec<u8> = [-5i32, 9].iter().flat_map(|x| x.to_be_bytes()).collect();
-        assert_eq!(decode_real(&make(">i4", false, "(2,)", &be)).unwrap().data, vec![-5.0, 9.0]);
+        assert_eq!(
+            decode_real(&make(">i4", false, "(2,)", &be)).unwrap().data,
+            vec![-5.0, 9.0]
+        );
         // Fortran order (2, 3): memory holds columns; C order reads rows.
         let f4: Vec<u8> = [0.0f32, 3.0, 1.0, 4.0, 2.0, 5.0]
             .iter()
@@ -265,8 +291,16 @@ mod tests {
         assert_eq!(a.data, vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
         // Errors in words.
         assert!(decode_real(b"hello").unwrap_err().contains("not a .npy"));
-        assert!(decode_real(&make("<c16", false, "(1,)", &[0; 16])).unwrap_err().contains("dtype"));
-        assert!(decode_real(&make("<f8", false, "(4,)", &[0; 16])).unwrap_err().contains("truncated"));
+        assert!(
+            decode_real(&make("<c16", false, "(1,)", &[0; 16]))
+                .unwrap_err()
+                .contains("dtype")
+        );
+        assert!(
+            decode_real(&make("<f8", false, "(4,)", &[0; 16]))
+                .unwrap_err()
+                .contains("truncated")
+        );
     }
 
     #[test]

@@ -121,7 +121,10 @@ kind = "density"
     // The check of the particle scene reports both Mie types and the host wavelength.
     let o = speckle(dir.path(), &["check", "p.toml"]);
     let t = text(&o);
-    assert!(t.contains("particles[1]") && t.contains("0.4 in the host"), "{t}");
+    assert!(
+        t.contains("particles[1]") && t.contains("0.4 in the host"),
+        "{t}"
+    );
 }
 
 #[test]
@@ -271,18 +274,42 @@ fn mie_and_fit_phase_write_files_a_scene_can_use() {
     std::fs::write(dir.path().join("v.toml"), s).unwrap();
     let o = speckle(dir.path(), &["check", "v.toml"]);
     let t = text(&o);
-    assert!(o.status.success() && t.contains("mean cosine 0.9000"), "{t}");
+    assert!(
+        o.status.success() && t.contains("mean cosine 0.9000"),
+        "{t}"
+    );
     // Bad input: exit 2 naming the option.
     for (args, field) in [
         (&["fit-phase", "--hg", "1.0"][..], "--hg"),
         (&["fit-phase"][..], "--hg/--mie-radius/--table"),
-        (&["fit-phase", "--hg", "0.5", "--tolerance", "0"][..], "--tolerance"),
         (
-            &["mie", "--radius", "0", "--index", "1.2", "--wavelength", "0.5"][..],
+            &["fit-phase", "--hg", "0.5", "--tolerance", "0"][..],
+            "--tolerance",
+        ),
+        (
+            &[
+                "mie",
+                "--radius",
+                "0",
+                "--index",
+                "1.2",
+                "--wavelength",
+                "0.5",
+            ][..],
             "--radius",
         ),
         (
-            &["mie", "--radius", "1", "--index", "1.2", "--wavelength", "0.5", "--volume-fraction", "2"][..],
+            &[
+                "mie",
+                "--radius",
+                "1",
+                "--index",
+                "1.2",
+                "--wavelength",
+                "0.5",
+                "--volume-fraction",
+                "2",
+            ][..],
             "--volume-fraction",
         ),
     ] {

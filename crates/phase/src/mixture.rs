@@ -127,7 +127,10 @@ mod tests {
         let hg = HenyeyGreenstein::new(0.6).unwrap();
         for mu in [-1.0, -0.3, 0.2, 0.99, 1.0] {
             assert!((one.density(mu) - hg.density(mu)).abs() <= 1e-15 * hg.density(mu));
-            assert_eq!(one.sample_cosine(mu.abs() * 0.999), hg.sample_cosine(mu.abs() * 0.999));
+            assert_eq!(
+                one.sample_cosine(mu.abs() * 0.999),
+                hg.sample_cosine(mu.abs() * 0.999)
+            );
         }
     }
 
