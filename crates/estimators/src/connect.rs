@@ -1,116 +1,473 @@
 //! Next-event connections of path vertices to all sources and sensors (Eqs. 31, 38).
 //!
 //! Per path, the legs from the sources and to the sensors at `x1` are computed once; per vertex
-//! `x_b`, once per source and once per sensor. The `J` pair values are then products of these
-//! per-endpoint terms, so the cost per vertex is `O(S + V)` exponentials and `O(J)` complex
-//! multiplies.
+//! `x_b`, once per source and once per sensor, by the vectorised kernels of [`Endpoints`]. The
+//! `J` pair values are then products of these per-endpoint terms, so the cost per vertex is
+//! `O(S + V)` exponentials and sines and `O(J)` complex multiplies.
+//!
+//! A connector works on one [`Tile`] of the pair list: all of it for the covariance, and blocks
+//! of at most a few ten thousand pairs for large field renders, so that the per-vertex pair
+//! loop runs over arrays that stay in the core's cache and a work item holds only its block.
+//! When the pairs are the full grid of [`crate::Pair::all`] a tile is a block of sources times a
+//! block of sensors, and the pair loops are contiguous structure-of-arrays loops.
 
-use crate::{Coherence, Leg, Scene};
+use crate::endpoints::{Endpoints, Legs};
+use crate::{Coherence, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
+use std::ops::Range;
 
-/// Scratch space for the connections of one path at a time; allocated once per batch.
+/// A complex vector stored as two real arrays (vectorises better than `[Complex64]`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Cvec {
+    pub re: Vec<f64>,
+    pub im: Vec<f64>,
+}
+
+impl Cvec {
+    pub fn zeros(n: usize) -> Self {
+        Self {
+            re: vec![0.0; n],
+            im: vec![0.0; n],
+        }
+    }
+
+    #[inline]
+    fn get(&self, i: usize) -> Complex64 {
+        Complex64::new(self.re[i], self.im[i])
+    }
+}
+
+/// A block of a scene's pair list.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Tile {
+    /// The pairs `(s, v)`, `s` in `sources`, `v` in `sensors`, of a scene whose pair list is
+    /// the full source-major grid (`Pair::all`); local index
+    /// `(s - sources.start) * sensors.len() + (v - sensors.start)`.
+    Grid {
+        sources: Range<usize>,
+        sensors: Range<usize>,
+    },
+    /// The entries `pairs` of the scene's pair list, in order.
+    List { pairs: Range<usize> },
+}
+
+impl Tile {
+    /// The whole pair list as one tile (local index = pair index).
+    pub fn whole<M, P>(scene: &Scene<M, P>) -> Self
+    where
+        M: Medium,
+        P: PhaseFunction,
+    {
+        if is_grid(scene) {
+            Self::Grid {
+                sources: 0..scene.sources().len(),
+                sensors: 0..scene.sensors().len(),
+            }
+        } else {
+            Self::List {
+                pairs: 0..scene.len(),
+            }
+        }
+    }
+
+    /// Number of pairs.
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Grid { sources, sensors } => sources.len() * sensors.len(),
+            Self::List { pairs } => pairs.len(),
+        }
+    }
+
+    /// An upper bound of the number of endpoints the tile connects to.
+    pub fn endpoints(&self) -> usize {
+        match self {
+            Self::Grid { sources, sensors } => sources.len() + sensors.len(),
+            Self::List { pairs } => 2 * pairs.len(),
+        }
+    }
+}
+
+/// Whether the pairs of `scene` are exactly `Pair::all(S, V)`.
+pub(crate) fn is_grid<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>) -> bool {
+    let (ns, nv) = (scene.sources().len(), scene.sensors().len());
+    scene.len() == ns * nv
+        && scene
+            .pairs()
+            .iter()
+            .enumerate()
+            .all(|(j, p)| p.source == j / nv && p.sensor == j % nv)
+}
+
+/// `0..n` cut into `parts` contiguous ranges whose lengths differ by at most one.
+fn split(n: usize, parts: usize) -> Vec<Range<usize>> {
+    let parts = parts.clamp(1, n.max(1));
+    (0..parts)
+        .map(|p| (p * n / parts)..((p + 1) * n / parts))
+        .collect()
+}
+
+/// The pair list of `scene` cut into tiles of at most about `max_pairs` pairs (a grid into
+/// blocks of at most `sqrt(max_pairs)` sources times the rest in sensors, so that few legs are
+/// computed twice; a list into consecutive ranges). Depends only on the scene, never on the
+/// number of threads.
+pub(crate) fn tiles<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    max_pairs: usize,
+) -> Vec<Tile> {
+    let max_pairs = max_pairs.max(1);
+    if is_grid(scene) {
+        let (ns, nv) = (scene.sources().len(), scene.sensors().len());
+        let per_source = ns.min(max_pairs.isqrt().max(1));
+        let per_sensor = (max_pairs / per_source).clamp(1, nv);
+        let sensor_blocks = split(nv, nv.div_ceil(per_sensor));
+        split(ns, ns.div_ceil(per_source))
+            .into_iter()
+            .flat_map(|sources| {
+                sensor_blocks.iter().map(move |sensors| Tile::Grid {
+                    sources: sources.clone(),
+                    sensors: sensors.clone(),
+                })
+            })
+            .collect()
+    } else {
+        split(scene.len(), scene.len().div_ceil(max_pairs))
+            .into_iter()
+            .map(|pairs| Tile::List { pairs })
+            .collect()
+    }
+}
+
+/// Local endpoint indices of the pairs of a tile.
+enum PairMap {
+    /// Every (source, sensor) combination, source-major.
+    Grid { sensors: usize },
+    /// Listed pairs.
+    List { source: Vec<u32>, sensor: Vec<u32> },
+}
+
+/// Most entries `types * pairs` of the table of first-vertex amplitudes.
+const MAX_TABLE: usize = 1 << 22;
+
+/// Scratch space for the connections of one path at a time to the pairs of one tile;
+/// allocated once per work item.
 pub(crate) struct Connector<'s, M, P> {
     scene: &'s Scene<M, P>,
-    k: f64,
+    sources: Endpoints<'s, M>,
+    sensors: Endpoints<'s, M>,
+    pairs: PairMap,
     /// Particle type at `x1` of the current path.
     type1: usize,
-    in1: Vec<Leg>,
-    out1: Vec<Leg>,
+    /// Legs from the sources to `x1` and from `x1` to the sensors.
+    in1: Legs,
+    out1: Legs,
+    /// Legs from the sources to `x_b` and from `x_b` to the sensors.
+    in_b: Legs,
+    out_b: Legs,
     /// `upsilon(i -> x1) s(i . w12)` per source.
-    fwd_src: Vec<Complex64>,
+    fwd_src: Cvec,
     /// `upsilon(x1 -> v) s(-w12 . v)` per sensor.
-    rev_sens: Vec<Complex64>,
+    rev_sens: Cvec,
     /// `upsilon(x_b -> v) s(w_in . v)` per sensor.
-    fwd_sens: Vec<Complex64>,
+    fwd_sens: Cvec,
     /// `upsilon(i -> x_b) s(-i . w_in)` per source.
-    rev_src: Vec<Complex64>,
-    /// The `J` pair values of the current vertex.
+    rev_src: Cvec,
+    /// Per particle type, `s(i . v)` per pair, when every endpoint is directional (plane waves
+    /// and far-field sensors); empty otherwise.
+    first_amp: Vec<Cvec>,
+    /// The `J` pair values of the current vertex (only for [`Connector::new`]).
     pub(crate) a: Vec<Complex64>,
 }
 
 impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
+    /// A connector for all pairs of `scene`, whose [`Connector::first`] and
+    /// [`Connector::vertex`] fill `a` (indexed by pair).
     pub(crate) fn new(scene: &'s Scene<M, P>) -> Self {
-        let (ns, nv) = (scene.sources().len(), scene.sensors().len());
-        let zero = Complex64::new(0.0, 0.0);
-        let leg = Leg {
-            amp: zero,
-            dir: DVec3::Z,
+        let mut c = Self::for_tile(scene, &Tile::whole(scene));
+        c.a = vec![Complex64::new(0.0, 0.0); scene.len()];
+        c
+    }
+
+    /// A connector for the pairs of `tile`, for [`Connector::add_first`] and
+    /// [`Connector::add_vertex`].
+    pub(crate) fn for_tile(scene: &'s Scene<M, P>, tile: &Tile) -> Self {
+        let (m, k) = (scene.medium(), scene.wavenumber());
+        let (sources, sensors, pairs) = match tile {
+            Tile::Grid { sources, sensors } => (
+                Endpoints::sources(m, k, &scene.sources()[sources.clone()]),
+                Endpoints::sensors(m, k, &scene.sensors()[sensors.clone()]),
+                PairMap::Grid {
+                    sensors: sensors.len(),
+                },
+            ),
+            Tile::List { pairs } => {
+                let pairs = &scene.pairs()[pairs.clone()];
+                let (src, s_idx) = compact(scene.sources().len(), pairs.iter().map(|p| p.source));
+                let (sen, v_idx) = compact(scene.sensors().len(), pairs.iter().map(|p| p.sensor));
+                let src: Vec<_> = src.iter().map(|&s| scene.sources()[s]).collect();
+                let sen: Vec<_> = sen.iter().map(|&v| scene.sensors()[v]).collect();
+                (
+                    Endpoints::sources(m, k, &src),
+                    Endpoints::sensors(m, k, &sen),
+                    PairMap::List {
+                        source: s_idx,
+                        sensor: v_idx,
+                    },
+                )
+            }
         };
-        Self {
+        let (ns, nv, n) = (sources.len(), sensors.len(), tile.len());
+        let (in1, out1) = (sources.legs(), sensors.legs());
+        let mut c = Self {
             scene,
-            k: scene.wavenumber(),
+            in_b: sources.legs(),
+            out_b: sensors.legs(),
+            sources,
+            sensors,
+            pairs,
             type1: 0,
-            in1: vec![leg; ns],
-            out1: vec![leg; nv],
-            fwd_src: vec![zero; ns],
-            rev_sens: vec![zero; nv],
-            fwd_sens: vec![zero; nv],
-            rev_src: vec![zero; ns],
-            a: vec![zero; scene.len()],
+            in1,
+            out1,
+            fwd_src: Cvec::zeros(ns),
+            rev_sens: Cvec::zeros(nv),
+            fwd_sens: Cvec::zeros(nv),
+            rev_src: Cvec::zeros(ns),
+            first_amp: vec![],
+            a: vec![],
+        };
+        let types = scene.phases().len();
+        if c.sources.all_directional()
+            && c.sensors.all_directional()
+            && types.saturating_mul(n) <= MAX_TABLE
+        {
+            // s(i . v) of far-field pairs depends only on the pair and the type at x1.
+            let table = scene
+                .phases()
+                .iter()
+                .map(|phase| {
+                    let mut t = Cvec::zeros(n);
+                    c.for_pairs(|i, s, v| {
+                        let a = phase.amplitude_between(c.in1.dir(s), c.out1.dir(v));
+                        t.re[i] = a.re;
+                        t.im[i] = a.im;
+                    });
+                    t
+                })
+                .collect();
+            c.first_amp = table;
+        }
+        c
+    }
+
+    /// Calls `f(i, s, v)` for every local pair `i` with local source `s` and sensor `v`.
+    fn for_pairs(&self, mut f: impl FnMut(usize, usize, usize)) {
+        match &self.pairs {
+            PairMap::Grid { sensors } => {
+                for s in 0..self.sources.len() {
+                    for v in 0..*sensors {
+                        f(s * sensors + v, s, v);
+                    }
+                }
+            }
+            PairMap::List { source, sensor } => {
+                for (i, (&s, &v)) in source.iter().zip(sensor).enumerate() {
+                    f(i, s as usize, v as usize);
+                }
+            }
         }
     }
 
-    /// Starts a path at `x1`, where a particle of type `ty` scatters, and fills `a` with the
-    /// single-scattering values `F_j = upsilon(i_j -> x1) s(i_j -> v_j) upsilon(x1 -> v_j)`
-    /// (Eq. 41's integrand, with the amplitude `s_ty` of that particle).
-    pub(crate) fn first(&mut self, x1: DVec3, ty: usize) {
+    /// Starts a path at `x1`, where a particle of type `ty` scatters: the legs at `x1`.
+    fn start(&mut self, x1: DVec3, ty: usize) {
         self.type1 = ty;
-        let (m, k) = (self.scene.medium(), self.k);
-        for (leg, s) in self.in1.iter_mut().zip(self.scene.sources()) {
-            *leg = s.leg(m, k, x1);
-        }
-        for (leg, v) in self.out1.iter_mut().zip(self.scene.sensors()) {
-            *leg = v.leg(m, k, x1);
-        }
-        let phase = &self.scene.phases()[ty];
-        for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
-            let (i, o) = (&self.in1[p.source], &self.out1[p.sensor]);
-            *a = i.amp * o.amp * phase.amplitude_between(i.dir, o.dir);
+        self.sources.connect(x1, &mut self.in1);
+        self.sensors.connect(x1, &mut self.out1);
+    }
+
+    /// Calls `emit(i, z F_i)` for every pair `i` of the tile, with the single-scattering
+    /// values `F_i = upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` of the current path (Eq. 41's
+    /// integrand, with the amplitude `s_ty` of the particle at `x1`).
+    fn single(&self, z: Complex64, mut emit: impl FnMut(usize, Complex64)) {
+        let (in1, out1) = (&self.in1, &self.out1);
+        let table = self.first_amp.get(self.type1);
+        let phase = &self.scene.phases()[self.type1];
+        let f = |i: usize, s: usize, v: usize| {
+            let amp = match table {
+                Some(t) => t.get(i),
+                None => phase.amplitude_between(in1.dir(s), out1.dir(v)),
+            };
+            (z * in1.amp(s)) * (out1.amp(v) * amp)
+        };
+        self.for_pairs(|i, s, v| emit(i, f(i, s, v)));
+    }
+
+    /// Starts a path at `x1` (particle type `ty`) and fills `a` with the single-scattering
+    /// values `F_j` (Eq. 41's integrand).
+    pub(crate) fn first(&mut self, x1: DVec3, ty: usize) {
+        self.start(x1, ty);
+        let mut a = std::mem::take(&mut self.a);
+        self.single(Complex64::new(1.0, 0.0), |i, f| a[i] = f);
+        self.a = a;
+    }
+
+    /// Starts a path at `x1` (particle type `ty`) and adds `z F_j` to `u` (local pair order).
+    pub(crate) fn add_first(&mut self, x1: DVec3, ty: usize, z: Complex64, u: &mut Cvec) {
+        self.start(x1, ty);
+        let (in1, out1) = (&self.in1, &self.out1);
+        match (&self.pairs, self.first_amp.get(ty)) {
+            (PairMap::Grid { sensors: nv }, Some(t)) => {
+                // The hot case of far-field images: contiguous rows, vectorised.
+                let nv = *nv;
+                let (or, oi) = (&out1.re[..nv], &out1.im[..nv]);
+                for s in 0..in1.len() {
+                    let al = z * in1.amp(s);
+                    let row = s * nv..(s + 1) * nv;
+                    let (tr, ti) = (&t.re[row.clone()], &t.im[row.clone()]);
+                    let (ur, ui) = (&mut u.re[row.clone()], &mut u.im[row]);
+                    for v in 0..nv {
+                        // u += (z upsilon(i -> x1)) (upsilon(x1 -> v) s(i . v))
+                        let br = or[v] * tr[v] - oi[v] * ti[v];
+                        let bi = or[v] * ti[v] + oi[v] * tr[v];
+                        ur[v] += al.re * br - al.im * bi;
+                        ui[v] += al.re * bi + al.im * br;
+                    }
+                }
+            }
+            _ => self.single(z, |i, f| {
+                u.re[i] += f.re;
+                u.im[i] += f.im;
+            }),
         }
     }
 
     /// Fixes the first direction `w12` of the current path (call once, at its second vertex).
     pub(crate) fn second(&mut self, w12: DVec3) {
         let phase = &self.scene.phases()[self.type1];
-        for (f, leg) in self.fwd_src.iter_mut().zip(&self.in1) {
-            *f = leg.amp * phase.amplitude_between(leg.dir, w12);
-        }
-        for (r, leg) in self.rev_sens.iter_mut().zip(&self.out1) {
-            *r = leg.amp * phase.amplitude_between(-w12, leg.dir);
+        times_amplitude(phase, &self.in1, &mut self.fwd_src, |d| (d, w12));
+        times_amplitude(phase, &self.out1, &mut self.rev_sens, |d| (-w12, d));
+    }
+
+    /// Computes the per-endpoint values of vertex `x_b`, where a particle of type `ty`
+    /// scatters, reached along `w_in` (Eq. 38; with types, Eq. 48 of App. A.1 for the sampled
+    /// types of `x1` and `x_b`).
+    fn legs_at(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
+        let phase = &self.scene.phases()[ty];
+        self.sensors.connect(x, &mut self.out_b);
+        times_amplitude(phase, &self.out_b, &mut self.fwd_sens, |d| (w_in, d));
+        if coherence == Coherence::ForwardAndReversed {
+            self.sources.connect(x, &mut self.in_b);
+            times_amplitude(phase, &self.in_b, &mut self.rev_src, |d| (d, -w_in));
         }
     }
 
-    /// Fills `a` with the next-event values of vertex `x_b`, where a particle of type `ty`
-    /// scatters, reached along `w_in` (Eq. 38; with types, Eq. 48 of App. A.1 for the sampled
-    /// types of `x1` and `x_b`).
+    /// Fills `a` with the next-event values of vertex `x_b` (particle type `ty`, reached along
+    /// `w_in`): `a_j = fwd_src F_sens (+ rev_src R_sens)` (Eq. 38).
     pub(crate) fn vertex(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
-        let (m, k) = (self.scene.medium(), self.k);
-        let phase = &self.scene.phases()[ty];
-        for (f, v) in self.fwd_sens.iter_mut().zip(self.scene.sensors()) {
-            let leg = v.leg(m, k, x);
-            *f = leg.amp * phase.amplitude_between(w_in, leg.dir);
-        }
-        match coherence {
-            Coherence::ForwardOnly => {
-                for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
-                    *a = self.fwd_src[p.source] * self.fwd_sens[p.sensor];
+        self.legs_at(x, w_in, ty, coherence);
+        let reversed = coherence == Coherence::ForwardAndReversed;
+        let (fs, fv, rs, rv) = (&self.fwd_src, &self.fwd_sens, &self.rev_src, &self.rev_sens);
+        let mut a = std::mem::take(&mut self.a);
+        self.for_pairs(|i, s, v| {
+            let mut x = fs.get(s) * fv.get(v);
+            if reversed {
+                x += rs.get(s) * rv.get(v);
+            }
+            a[i] = x;
+        });
+        self.a = a;
+    }
+
+    /// Adds `z a` to `u` (local pair order) for the next-event values `a` of vertex `x_b`
+    /// (particle type `ty`, reached along `w_in`; Eq. 38).
+    pub(crate) fn add_vertex(
+        &mut self,
+        x: DVec3,
+        w_in: DVec3,
+        ty: usize,
+        coherence: Coherence,
+        z: Complex64,
+        u: &mut Cvec,
+    ) {
+        self.legs_at(x, w_in, ty, coherence);
+        let reversed = coherence == Coherence::ForwardAndReversed;
+        let (fs, fv, rs, rv) = (&self.fwd_src, &self.fwd_sens, &self.rev_src, &self.rev_sens);
+        match &self.pairs {
+            PairMap::Grid { sensors: nv } => {
+                let nv = *nv;
+                let (fvr, fvi) = (&fv.re[..nv], &fv.im[..nv]);
+                let (rvr, rvi) = (&rv.re[..nv], &rv.im[..nv]);
+                for s in 0..fs.re.len() {
+                    // u_sv += (z fwd_src_s) F_v + (z rev_src_s) R_v
+                    let al = z * fs.get(s);
+                    let row = s * nv..(s + 1) * nv;
+                    let (ur, ui) = (&mut u.re[row.clone()], &mut u.im[row]);
+                    if reversed {
+                        let be = z * rs.get(s);
+                        for v in 0..nv {
+                            ur[v] +=
+                                al.re * fvr[v] - al.im * fvi[v] + be.re * rvr[v] - be.im * rvi[v];
+                            ui[v] +=
+                                al.re * fvi[v] + al.im * fvr[v] + be.re * rvi[v] + be.im * rvr[v];
+                        }
+                    } else {
+                        for v in 0..nv {
+                            ur[v] += al.re * fvr[v] - al.im * fvi[v];
+                            ui[v] += al.re * fvi[v] + al.im * fvr[v];
+                        }
+                    }
                 }
             }
-            Coherence::ForwardAndReversed => {
-                for (r, s) in self.rev_src.iter_mut().zip(self.scene.sources()) {
-                    let leg = s.leg(m, k, x);
-                    *r = leg.amp * phase.amplitude_between(leg.dir, -w_in);
-                }
-                for (a, p) in self.a.iter_mut().zip(self.scene.pairs()) {
-                    *a = self.fwd_src[p.source] * self.fwd_sens[p.sensor]
-                        + self.rev_src[p.source] * self.rev_sens[p.sensor];
+            PairMap::List { source, sensor } => {
+                for (i, (&s, &v)) in source.iter().zip(sensor).enumerate() {
+                    let (s, v) = (s as usize, v as usize);
+                    let mut x = fs.get(s) * fv.get(v);
+                    if reversed {
+                        x += rs.get(s) * rv.get(v);
+                    }
+                    let x = z * x;
+                    u.re[i] += x.re;
+                    u.im[i] += x.im;
                 }
             }
         }
     }
+}
+
+/// `out_i = legs_i s(dirs(d_i))` with `d_i` the direction of leg `i` and `dirs` giving the
+/// (incoming, outgoing) directions of the scattering.
+#[inline]
+fn times_amplitude<P: PhaseFunction>(
+    phase: &P,
+    legs: &Legs,
+    out: &mut Cvec,
+    dirs: impl Fn(DVec3) -> (DVec3, DVec3),
+) {
+    let n = legs.len();
+    let (re, im) = (&mut out.re[..n], &mut out.im[..n]);
+    for i in 0..n {
+        let (w_in, w_out) = dirs(legs.dir(i));
+        let x = legs.amp(i) * phase.amplitude_between(w_in, w_out);
+        re[i] = x.re;
+        im[i] = x.im;
+    }
+}
+
+/// The distinct values of `idx` (each below `n`) in increasing order, and every entry of `idx`
+/// as an index into that list.
+fn compact(n: usize, idx: impl Iterator<Item = usize> + Clone) -> (Vec<usize>, Vec<u32>) {
+    let mut used = vec![false; n];
+    for i in idx.clone() {
+        used[i] = true;
+    }
+    let mut local = vec![u32::MAX; n];
+    let mut list = vec![];
+    for (i, _) in used.iter().enumerate().filter(|(_, u)| **u) {
+        local[i] = list.len() as u32;
+        list.push(i);
+    }
+    (list, idx.map(|i| local[i]).collect())
 }
 
 /// The factor on `weight * a a^H` for a vertex `b >= 2`: 1/2 with reversed paths (Eq. 36: each

@@ -3,10 +3,9 @@
 
 use crate::connect::{Connector, coherence_factor};
 use crate::driver::{Batches, CANCEL_CHECK, Progress, TARGET_BATCHES, run_ordered};
-use crate::moments::{Layout, Moments};
+use crate::moments::{BatchSum, Buffers, Layout, Moments};
 use crate::{Coherence, EstimatorError, MatrixEstimate, Scene};
 use glam::DVec3;
-use num_complex::Complex64;
 use speckle_medium::Medium;
 use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
@@ -49,15 +48,14 @@ impl CovarianceEstimate {
     }
 }
 
+/// The sums of one batch: single and multiple scattering apart (Alg. 1 splits them).
 struct Batch {
-    single: Vec<Complex64>,
-    multiple: Vec<Complex64>,
+    single: BatchSum,
+    multiple: BatchSum,
 }
 
 struct CovarianceSink<'c, 's, M, P> {
-    layout: Layout,
     conn: &'c mut Connector<'s, M, P>,
-    conj: Vec<Complex64>,
     batch: &'c mut Batch,
     coherence: Coherence,
     factor: f64,
@@ -67,9 +65,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
         self.conn.first(x1, ty);
-        let (a, conj) = (&self.conn.a, &mut self.conj);
-        self.layout
-            .accumulate(&mut self.batch.single, a, conj, weight);
+        self.batch.single.add(&self.conn.a, weight);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -77,9 +73,9 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
             self.conn.second(v.w12);
         }
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
-        let w = self.factor * v.weight;
-        let (a, conj) = (&self.conn.a, &mut self.conj);
-        self.layout.accumulate(&mut self.batch.multiple, a, conj, w);
+        self.batch
+            .multiple
+            .add(&self.conn.a, self.factor * v.weight);
     }
 }
 
@@ -107,8 +103,9 @@ pub fn render_covariance<M: Medium, P: PhaseFunction>(
 
 /// Renders only the diagonal of the covariance, the intensities `C[j, j] = E|u_j|^2 - |E u_j|^2`
 /// of every pair, in `O(J)` per vertex instead of `O(J^2)`: the same estimator as
-/// [`render_covariance`] (bitwise the same diagonal for the same seed), for intensity-versus-angle
-/// curves over many sensors. The matrices of the result are `J x 1` columns.
+/// [`render_covariance`] (bitwise the same diagonal for the same seed: the full render sums its
+/// diagonal vertex by vertex the same way), for intensity-versus-angle curves over many sensors.
+/// The matrices of the result are `J x 1` columns.
 ///
 /// ```
 /// use speckle_estimators::*;
@@ -146,17 +143,15 @@ fn render<M: Medium, P: PhaseFunction>(
     let j = scene.len();
     let len = layout.len(j);
     let batches = Batches::about(options.paths, TARGET_BATCHES);
-    let zero = Complex64::new(0.0, 0.0);
+    let buffers = Buffers::default();
     let work = |b: usize| {
         let mut conn = Connector::new(scene);
         let mut batch = Batch {
-            single: vec![zero; len],
-            multiple: vec![zero; len],
+            single: BatchSum::new(layout, j, &buffers),
+            multiple: BatchSum::new(layout, j, &buffers),
         };
         let mut sink = CovarianceSink {
-            layout,
             conn: &mut conn,
-            conj: vec![zero; j],
             batch: &mut batch,
             coherence: options.coherence,
             factor: coherence_factor(options.coherence),
@@ -169,15 +164,20 @@ fn render<M: Medium, P: PhaseFunction>(
             tracer.trace(&mut PathRng::new(options.seed, path), &mut sink);
         }
         progress.advance(range.end - range.start);
-        Some((range.end - range.start, batch))
+        // Flushing the last blocks here keeps every batch sum complete and the merge in order.
+        let (single, multiple) = (batch.single.finish(), batch.multiple.finish());
+        Some((range.end - range.start, single, multiple))
     };
     let new = || Moments::new(layout, j);
     let (mut single, mut multiple, mut total) = (new(), new(), new());
-    let done = run_ordered(batches.count(), 2 * len * 16, work, |_, (n, b)| {
-        single.add_batch(n, |i| b.single[i]);
-        multiple.add_batch(n, |i| b.multiple[i]);
-        total.add_batch(n, |i| b.single[i] + b.multiple[i]);
+    let done = run_ordered(batches.count(), 2 * len * 16, work, |_, (n, s, m)| {
+        single.add_batch(n, &s, None);
+        multiple.add_batch(n, &m, None);
+        total.add_batch(n, &s, Some(&m));
+        buffers.give(s);
+        buffers.give(m);
     });
+    drop(buffers);
     if !done {
         return Err(EstimatorError::Cancelled);
     }
@@ -202,11 +202,10 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
     let tracer = scene.tracer()?;
     let j = scene.len();
     let batches = Batches::about(options.paths, TARGET_BATCHES);
-    let zero = Complex64::new(0.0, 0.0);
+    let buffers = Buffers::default();
     let work = |b: usize| {
         let mut conn = Connector::new(scene);
-        let mut sum = vec![zero; j * j];
-        let mut conj = vec![zero; j];
+        let mut sum = BatchSum::new(Layout::Full, j, &buffers);
         let range = batches.range(b);
         for path in range.clone() {
             if path % CANCEL_CHECK == 0 && progress.cancelled() {
@@ -214,16 +213,91 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
             }
             let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
             conn.first(x1, ty);
-            Layout::Full.accumulate(&mut sum, &conn.a, &mut conj, w);
+            sum.add(&conn.a, w);
         }
         progress.advance(range.end - range.start);
-        Some((range.end - range.start, sum))
+        Some((range.end - range.start, sum.finish()))
     };
     let mut m = Moments::new(Layout::Full, j);
     if !run_ordered(batches.count(), j * j * 16, work, |_, (n, s)| {
-        m.add_batch(n, |i| s[i])
+        m.add_batch(n, &s, None);
+        buffers.give(s);
     }) {
         return Err(EstimatorError::Cancelled);
     }
+    drop(buffers);
     Ok(m.finish())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{NoProgress, Pair, Sensor, Source};
+    use num_complex::Complex64;
+    use speckle_medium::{Aabb, HomogeneousBox};
+    use speckle_paths::TracerConfig;
+    use speckle_phase::Phase;
+
+    /// A slab with 2 plane waves and 4 far-field sensors (`J = 8`).
+    fn scene() -> Scene<HomogeneousBox, Phase> {
+        let slab = Aabb::centered(DVec3::ZERO, DVec3::new(8.0, 8.0, 3.0)).unwrap();
+        let m = HomogeneousBox::from_mean_free_path(slab, 2.0, 0.9).unwrap();
+        let tilt = |n: usize| DVec3::new(0.07 * n as f64, 0.0, 1.0);
+        let src = (0..2)
+            .map(|n| Source::plane_wave(tilt(n)).unwrap())
+            .collect();
+        let sen = (0..4)
+            .map(|n| Sensor::far_field(tilt(n)).unwrap())
+            .collect();
+        let phase = Phase::hg(0.4).unwrap();
+        Scene::new(
+            m,
+            phase,
+            1.0,
+            src,
+            sen,
+            Pair::all(2, 4),
+            TracerConfig::default(),
+        )
+        .unwrap()
+    }
+
+    /// The diagonal of the full render, summed beside its rank-K blocks, is bitwise the
+    /// intensity render (values and standard errors of every part), and the full matrices are
+    /// Hermitian with a real diagonal.
+    #[test]
+    fn intensity_is_bitwise_the_covariance_diagonal() {
+        let s = scene();
+        for coherence in [Coherence::ForwardAndReversed, Coherence::ForwardOnly] {
+            let opts = CovarianceOptions {
+                paths: 3001,
+                seed: 5,
+                coherence,
+            };
+            let c = render_covariance(&s, &opts, &NoProgress).unwrap();
+            let i = render_intensity(&s, &opts, &NoProgress).unwrap();
+            let j = s.len();
+            for (full, diag) in [
+                (&c.total, &i.total),
+                (&c.single, &i.single),
+                (&c.multiple, &i.multiple),
+            ] {
+                for r in 0..j {
+                    // Real parts bitwise; imaginary parts zero (of either sign).
+                    let bits = |z: Complex64| {
+                        assert_eq!(z.im, 0.0);
+                        z.re.to_bits()
+                    };
+                    assert_eq!(bits(full.value.get(r, r)), bits(diag.value.get(r, 0)));
+                    assert_eq!(
+                        bits(full.std_error.get(r, r)),
+                        bits(diag.std_error.get(r, 0))
+                    );
+                    for q in 0..j {
+                        assert_eq!(full.value.get(r, q), full.value.get(q, r).conj());
+                    }
+                }
+            }
+        }
+    }
 }

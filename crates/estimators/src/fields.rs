@@ -1,6 +1,6 @@
 //! Speckle field sampling (Alg. 2, Sec. 5.2).
 
-use crate::connect::{Connector, coherence_factor};
+use crate::connect::{Connector, Cvec, Tile, coherence_factor, tiles};
 use crate::driver::{Batches, CANCEL_CHECK, Progress, run_ordered};
 use crate::{CMatrix, Coherence, EstimatorError, Scene, speckle_means};
 use glam::DVec3;
@@ -9,6 +9,7 @@ use speckle_medium::Medium;
 use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
+use std::ops::Range;
 
 /// Options of a field render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,12 +37,30 @@ pub struct FieldEstimate {
     pub paths_per_realization: u64,
 }
 
-/// Paths per work item of a field render (fixed, so results do not depend on threads).
-const FIELD_BATCH: u64 = 1024;
+/// Most pairs per work item of a field render: a large render is cut into tiles of pairs
+/// (see [`crate::connect::Tile`]) so that a work item holds 512 KiB of fields and its
+/// per-vertex loops run in the core's cache.
+const FIELD_TILE: usize = 1 << 15;
+
+/// Work per item, in units of a pair update per vertex (a leg counts as [`LEG_COST`]).
+const ITEM_WORK: u64 = 1 << 22;
+
+/// The cost of one leg (an exponential, a sine and cosine, an amplitude) in pair updates.
+const LEG_COST: u64 = 8;
+
+/// Paths per work item: about [`ITEM_WORK`] per vertex over the item, 16 to 1024 paths, and
+/// the same for all items of a realization. Depends only on the scene and `n`, never on the
+/// number of threads, so results stay bitwise identical for any thread count.
+fn paths_per_item(n: u64, tile: &Tile) -> u64 {
+    let cost = tile.len() as u64 + LEG_COST * tile.endpoints() as u64;
+    let size = (ITEM_WORK / cost.max(1)).clamp(16, 1024);
+    // Even batches: ceil(n / size) of them, of (nearly) equal length.
+    n.div_ceil(n.div_ceil(size))
+}
 
 struct FieldSink<'c, 's, M, P> {
     conn: &'c mut Connector<'s, M, P>,
-    u: &'c mut [Complex64],
+    u: &'c mut Cvec,
     coherence: Coherence,
     factor: f64,
 }
@@ -55,22 +74,17 @@ impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng) {
         // Single scattering: z sqrt(sigma_s / q_o) F, so that E[u u^H] gains (sigma_s / q_o) F F^H
         // as in Alg. 1. (Alg. 2 prints sqrt(V/2) here, which would halve single scattering.)
-        self.conn.first(x1, ty);
         let z = random_phase(rng) * weight.sqrt();
-        for (u, a) in self.u.iter_mut().zip(&self.conn.a) {
-            *u += z * a;
-        }
+        self.conn.add_first(x1, ty, z, self.u);
     }
 
     fn vertex(&mut self, v: &Vertex, rng: &mut PathRng) {
         if v.index == 2 {
             self.conn.second(v.w12);
         }
-        self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
         let z = random_phase(rng) * (self.factor * v.weight).sqrt();
-        for (u, a) in self.u.iter_mut().zip(&self.conn.a) {
-            *u += z * a;
-        }
+        self.conn
+            .add_vertex(v.x, v.w_in, v.ty, self.coherence, z, self.u);
     }
 }
 
@@ -78,10 +92,36 @@ impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
 /// `m + sqrt(1/N) sum_n z_n sqrt(w_n) a_n` with an independent uniform phase `z` per vertex, so
 /// that `E[(u - m)(u - m)^H]` equals the covariance of [`crate::render_covariance`] exactly, and
 /// the fields tend to circular complex Gaussians as `N` grows.
+///
+/// The work is split into items of (realization, batch of paths, tile of at most 32768 pairs);
+/// an item traces its paths and connects them to its tile only (paths are traced once per
+/// tile, a small cost next to the connections of so many pairs).
+///
+/// Memory, beyond the scene: the result, `16 (R + 1) J` bytes (`R x J` fields and the `J`
+/// mean, zeros when `add_mean` is off), plus at most `3 x threads` tiles of fields (512 KiB
+/// each; in flight or being filled) and one connector per running item (its endpoint arrays,
+/// about 250 bytes per endpoint, and a first-vertex amplitude table of 512 KiB per particle
+/// type for far-field tiles): `16 (R + 1) J + O(threads)` bytes, about 2 MiB per thread. For
+/// 512 x 512 far-field sensors and 8 plane waves (`J = 2^21`) and `R = 2` that is 96 MiB of
+/// result and about 5 MiB of work space on 2 threads.
+///
+/// Deterministic: the same seed gives bitwise the same fields for any number of threads.
 pub fn render_fields<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     options: &FieldOptions,
     progress: &dyn Progress,
+) -> Result<FieldEstimate, EstimatorError> {
+    render(scene, options, progress, FIELD_TILE, None)
+}
+
+/// [`render_fields`] with tiles of at most about `max_tile` pairs and, if given, `batch` paths
+/// per work item.
+fn render<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &FieldOptions,
+    progress: &dyn Progress,
+    max_tile: usize,
+    batch: Option<u64>,
 ) -> Result<FieldEstimate, EstimatorError> {
     if options.realizations == 0 {
         return Err(EstimatorError::InvalidInput {
@@ -103,12 +143,20 @@ pub fn render_fields<M: Medium, P: PhaseFunction>(
     } else {
         vec![Complex64::new(0.0, 0.0); j]
     };
-    let per = Batches::of_size(n, FIELD_BATCH);
-    let items = options.realizations * per.count();
+    let tiles = tiles(scene, max_tile);
+    let nt = tiles.len();
+    let per = Batches::of_size(n, batch.unwrap_or_else(|| paths_per_item(n, &tiles[0])));
+    let items = options.realizations * per.count() * nt;
+    // Item (r, b, t) = ((r * batches) + b) * tiles + t: a realization's batches of one tile
+    // are merged in batch order.
+    let split = |item: usize| {
+        let (rb, t) = (item / nt, item % nt);
+        (rb / per.count(), rb % per.count(), t)
+    };
     let work = |item: usize| {
-        let (r, b) = (item / per.count(), item % per.count());
-        let mut conn = Connector::new(scene);
-        let mut u = vec![Complex64::new(0.0, 0.0); j];
+        let (r, b, t) = split(item);
+        let mut conn = Connector::for_tile(scene, &tiles[t]);
+        let mut u = Cvec::zeros(tiles[t].len());
         let mut sink = FieldSink {
             conn: &mut conn,
             u: &mut u,
@@ -123,27 +171,48 @@ pub fn render_fields<M: Medium, P: PhaseFunction>(
             let stream = r as u64 * n + path;
             tracer.trace(&mut PathRng::new(options.seed, stream), &mut sink);
         }
-        progress.advance(range.end - range.start);
+        if t + 1 == nt {
+            progress.advance(range.end - range.start);
+        }
         Some(u)
     };
     let mut fields = CMatrix::zeros(options.realizations, j);
     let scale = 1.0 / (n as f64).sqrt();
-    let done = run_ordered(items, j * 16, work, |item, u| {
-        let r = item / per.count();
+    let bytes = tiles.iter().map(Tile::len).max().unwrap_or(0) * 16;
+    let nv = scene.sensors().len();
+    let done = run_ordered(items, bytes, work, |item, u| {
+        let (r, _, t) = split(item);
         let row = &mut fields.as_mut_slice()[r * j..(r + 1) * j];
-        for (f, x) in row.iter_mut().zip(&u) {
-            *f += x * scale;
+        let add = |dst: &mut [Complex64], from: Range<usize>| {
+            for (f, (re, im)) in dst
+                .iter_mut()
+                .zip(u.re[from.clone()].iter().zip(&u.im[from]))
+            {
+                *f += Complex64::new(*re, *im) * scale;
+            }
+        };
+        match &tiles[t] {
+            Tile::Grid { sources, sensors } => {
+                let w = sensors.len();
+                for (l, s) in sources.clone().enumerate() {
+                    let start = s * nv + sensors.start;
+                    add(&mut row[start..start + w], l * w..(l + 1) * w);
+                }
+            }
+            Tile::List { pairs } => add(&mut row[pairs.clone()], 0..pairs.len()),
         }
     });
     if !done {
         return Err(EstimatorError::Cancelled);
     }
-    for r in 0..options.realizations {
-        for (f, m) in fields.as_mut_slice()[r * j..(r + 1) * j]
-            .iter_mut()
-            .zip(&mean)
-        {
-            *f += m;
+    if options.add_mean {
+        for r in 0..options.realizations {
+            for (f, m) in fields.as_mut_slice()[r * j..(r + 1) * j]
+                .iter_mut()
+                .zip(&mean)
+            {
+                *f += m;
+            }
         }
     }
     Ok(FieldEstimate {
@@ -151,4 +220,164 @@ pub fn render_fields<M: Medium, P: PhaseFunction>(
         mean,
         paths_per_realization: n,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{NoProgress, Pair, Sensor, Source};
+    use speckle_medium::{Aabb, HomogeneousBox};
+    use speckle_paths::TracerConfig;
+    use speckle_phase::Phase;
+
+    /// Two particle types (HG lobes), plane-wave and point sources, far-field and point
+    /// sensors in mixed runs: `J = 3 x 7`.
+    fn mixed_scene(pairs: Option<Vec<Pair>>) -> Scene<HomogeneousBox, Phase> {
+        let b = Aabb::centered(DVec3::ZERO, DVec3::new(4.0, 3.0, 2.0)).unwrap();
+        let m = HomogeneousBox::with_types(b, 0.8, 0.1, vec![0.3, 0.7]).unwrap();
+        let sources = vec![
+            Source::plane_wave(DVec3::Z).unwrap(),
+            Source::plane_wave(DVec3::new(0.1, 0.0, 1.0)).unwrap(),
+            Source::Point {
+                position: DVec3::new(0.5, -0.5, -4.0),
+            },
+        ];
+        let far = |x: f64| Sensor::far_field(DVec3::new(x, 0.05, 1.0)).unwrap();
+        let point = |x: f64| Sensor::Point {
+            position: DVec3::new(x, 0.0, 5.0),
+        };
+        let sensors = vec![
+            far(0.0),
+            far(0.1),
+            far(-0.2),
+            far(0.3),
+            point(0.0),
+            point(1.0),
+            far(-0.5),
+        ];
+        Scene::with_types(
+            m,
+            vec![Phase::hg(0.5).unwrap(), Phase::hg(-0.3).unwrap()],
+            0.5,
+            sources,
+            sensors,
+            pairs.unwrap_or_else(|| Pair::all(3, 7)),
+            TracerConfig::default(),
+        )
+        .unwrap()
+    }
+
+    fn bits(f: &FieldEstimate) -> Vec<(u64, u64)> {
+        let z = f.fields.as_slice();
+        z.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+    }
+
+    #[test]
+    fn tiles_do_not_change_the_fields() {
+        // One tile, or 8 grid tiles (2 source blocks x 4 sensor blocks) / 6 list tiles, with
+        // the same batches: bitwise the same fields, both coherence modes.
+        let reversed: Vec<Pair> = Pair::all(3, 7).into_iter().rev().skip(3).collect();
+        for coherence in [Coherence::ForwardAndReversed, Coherence::ForwardOnly] {
+            let opts = FieldOptions {
+                realizations: 3,
+                paths_per_realization: 300,
+                seed: 4,
+                coherence,
+                add_mean: false,
+            };
+            let grid = mixed_scene(None);
+            let one = render(&grid, &opts, &NoProgress, 1 << 15, Some(70)).unwrap();
+            let many = render(&grid, &opts, &NoProgress, 4, Some(70)).unwrap();
+            assert_eq!(tiles(&grid, 4).len(), 8);
+            assert_eq!(bits(&one), bits(&many), "{coherence:?} grid");
+            let list = mixed_scene(Some(reversed.clone()));
+            let one_l = render(&list, &opts, &NoProgress, 1 << 15, Some(70)).unwrap();
+            let many_l = render(&list, &opts, &NoProgress, 3, Some(70)).unwrap();
+            assert_eq!(tiles(&list, 3).len(), 6);
+            assert_eq!(bits(&one_l), bits(&many_l), "{coherence:?} list");
+            // The listed pairs are the grid's entries in another order (up to rounding: the
+            // list loop multiplies in another order).
+            for r in 0..3 {
+                for (jl, p) in reversed.iter().enumerate() {
+                    let a = one_l.fields.get(r, jl);
+                    let b = one.fields.get(r, p.source * 7 + p.sensor);
+                    assert!((a - b).norm() <= 1e-13 * b.norm(), "{a} {b}");
+                }
+            }
+        }
+    }
+
+    /// Peak resident memory of this process in bytes (`VmHWM`), where Linux reports it.
+    fn peak_rss() -> Option<u64> {
+        let s = std::fs::read_to_string("/proc/self/status").ok()?;
+        let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    }
+
+    /// A 512 x 512 far-field image for 8 plane-wave tilts (`J = 2^21`), 2 realizations of 64
+    /// paths: prints the peak RSS and the run time. Run with
+    /// `cargo test --release -p speckle-estimators --lib -- --ignored --nocapture field_memory`.
+    #[test]
+    #[ignore = "memory measurement of a large render (a few seconds, about 100 MiB)"]
+    fn field_memory_512x512x8() {
+        let slab = Aabb::centered(DVec3::ZERO, DVec3::new(40.0, 40.0, 10.0)).unwrap();
+        let medium = HomogeneousBox::from_mean_free_path(slab, 10.0, 0.95).unwrap();
+        let sources: Vec<Source> = (0..8)
+            .map(|m| {
+                let t = (0.5 * f64::from(m)).to_radians();
+                Source::plane_wave(DVec3::new(t.sin(), 0.0, t.cos())).unwrap()
+            })
+            .collect();
+        let n = 512;
+        let tan = |i: usize| (-8.0 + 16.0 * i as f64 / (n - 1) as f64).to_radians().tan();
+        let sensors: Vec<Sensor> = (0..n * n)
+            .map(|i| Sensor::far_field(DVec3::new(tan(i % n), tan(i / n), 1.0)).unwrap())
+            .collect();
+        let scene = Scene::new(
+            medium,
+            Phase::hg(0.7).unwrap(),
+            1.0,
+            sources,
+            sensors,
+            Pair::all(8, n * n),
+            TracerConfig::default(),
+        )
+        .unwrap();
+        let before = peak_rss();
+        let opts = FieldOptions {
+            realizations: 2,
+            paths_per_realization: 64,
+            seed: 1,
+            coherence: Coherence::ForwardAndReversed,
+            add_mean: false,
+        };
+        let t = std::time::Instant::now();
+        let f = render_fields(&scene, &opts, &NoProgress).unwrap();
+        let wall = t.elapsed().as_secs_f64();
+        let after = peak_rss();
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        let output = ((f.fields.as_slice().len() + f.mean.len()) * 16) as u64;
+        assert!(f.fields.as_slice().iter().all(|z| z.is_finite()));
+        let (Some(before), Some(after)) = (before, after) else {
+            eprintln!("no VmHWM in /proc/self/status: peak memory not measured ({wall:.2} s)");
+            return;
+        };
+        let work = after.saturating_sub(before + output);
+        eprintln!(
+            "fields J = {} x R = 2, N = 64, {} threads: {wall:.2} s, peak RSS {:.0} MiB: {:.0} \
+             MiB before the render, {:.0} MiB of result (R x J fields and J mean), {:.1} MiB \
+             beyond it",
+            scene.len(),
+            rayon::current_num_threads(),
+            mib(after),
+            mib(before),
+            mib(output),
+            mib(work),
+        );
+        // The bound of `render_fields`, about 2 MiB per thread beyond the result, with room
+        // for the allocator and the thread stacks.
+        let bound = (8 + 4 * rayon::current_num_threads() as u64) << 20;
+        assert!(work < bound, "{} MiB beyond the result", mib(work));
+    }
 }

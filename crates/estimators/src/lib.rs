@@ -41,17 +41,20 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod block;
 mod connect;
 mod covariance;
 mod driver;
 mod empirical;
 mod endpoints;
+pub mod fastmath;
 mod fields;
 mod matrix;
 mod mean;
 mod moments;
 mod scene;
 
+pub use block::{BLOCK_COLUMNS, BlockAccumulator, rank1_upper};
 pub use covariance::{
     CovarianceEstimate, CovarianceOptions, render_covariance, render_intensity,
     render_single_scattering,

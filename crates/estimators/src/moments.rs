@@ -1,7 +1,10 @@
 //! Batch-means accumulation of matrix estimates and their standard errors.
 
+use crate::block::{BLOCK_COLUMNS, BlockAccumulator};
 use crate::{CMatrix, MatrixEstimate};
 use num_complex::Complex64;
+use rayon::prelude::*;
+use std::sync::{Mutex, PoisonError};
 
 /// Which entries of the `J x J` Hermitian matrix `sum w a a^H` are accumulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,18 +23,92 @@ impl Layout {
             Self::Diagonal => j,
         }
     }
+}
 
-    /// Adds `weight * a a^H` (its stored entries) to `m`; `conj` is scratch of length `J`.
-    #[inline]
-    pub fn accumulate(self, m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64], w: f64) {
-        match self {
-            Self::Full => rank1_upper(m, a, conj, w),
-            Self::Diagonal => {
-                for (s, x) in m.iter_mut().zip(a) {
-                    s.re += w * x.norm_sqr();
-                }
-            }
+/// The sum `sum w a a^H` of one batch, in the entries of a [`Layout`].
+///
+/// The diagonal `sum w |a_j|^2` is summed in real arithmetic, vertex by vertex, in both layouts
+/// alike, so that [`crate::render_intensity`] gives bitwise the diagonal of
+/// [`crate::render_covariance`]. A full matrix's other entries go through a [`BlockAccumulator`]
+/// (rank-[`BLOCK_COLUMNS`] updates), whose diagonal is then replaced; a `1 x 1` matrix is its
+/// diagonal alone.
+#[derive(Debug, Clone)]
+pub(crate) struct BatchSum {
+    /// The diagonal.
+    diag: Vec<f64>,
+    /// [`Layout::Full`] with `J > 1`: the row-major `J x J` sum (upper triangle) and its
+    /// accumulator.
+    full: Option<(Vec<Complex64>, BlockAccumulator)>,
+}
+
+impl BatchSum {
+    /// An empty sum; a full one in a buffer from `buffers`.
+    pub fn new(layout: Layout, j: usize, buffers: &Buffers) -> Self {
+        let full = (layout == Layout::Full && j > 1).then(|| {
+            // The block's first update overwrites the recycled buffer's stale triangle.
+            let mut block = BlockAccumulator::new(j, BLOCK_COLUMNS);
+            block.start_sum();
+            (buffers.take(j * j), block)
+        });
+        Self {
+            diag: vec![0.0; j],
+            full,
         }
+    }
+
+    /// Adds `w a a^H` (its stored entries).
+    #[inline]
+    pub fn add(&mut self, a: &[Complex64], w: f64) {
+        for (d, x) in self.diag.iter_mut().zip(a) {
+            *d += w * x.norm_sqr();
+        }
+        if let Some((sum, block)) = &mut self.full {
+            block.push(sum, a, w);
+        }
+    }
+
+    /// The complete sum in the entries of the layout (the last, partly filled block added).
+    pub fn finish(self) -> Vec<Complex64> {
+        let diag = self.diag.into_iter().map(|d| Complex64::new(d, 0.0));
+        match self.full {
+            Some((mut sum, mut block)) => {
+                block.flush(&mut sum);
+                let j = block.len();
+                for (r, d) in diag.enumerate() {
+                    sum[r * j + r] = d;
+                }
+                sum
+            }
+            None => diag.collect(),
+        }
+    }
+}
+
+/// Buffers of batch sums handed back after their merge, for the next batches. A fresh `J x J`
+/// buffer for every batch costs page faults and the kernel's zeroing on every use (a quarter of a
+/// one-thread render at `J = 512` with 32 paths per batch), clearing it again a tenth; a
+/// recycled one is handed out as it is (see [`BlockAccumulator::start_sum`]).
+#[derive(Debug, Default)]
+pub(crate) struct Buffers(Mutex<Vec<Vec<Complex64>>>);
+
+impl Buffers {
+    /// A buffer of `len` entries of arbitrary values.
+    pub fn take(&self, len: usize) -> Vec<Complex64> {
+        let recycled = self.0.lock().unwrap_or_else(PoisonError::into_inner).pop();
+        let mut v = recycled.unwrap_or_default();
+        if v.len() != len {
+            v.clear();
+            v.resize(len, Complex64::ZERO);
+        }
+        v
+    }
+
+    /// Hands `v` back for reuse.
+    pub fn give(&self, v: Vec<Complex64>) {
+        self.0
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(v);
     }
 }
 
@@ -67,22 +144,34 @@ impl Moments {
         }
     }
 
-    /// Adds one batch whose sum at stored index `idx` is `f(idx)`, over `n` paths.
-    pub fn add_batch(&mut self, n: u64, f: impl Fn(usize) -> Complex64) {
+    /// Adds one batch of `n` paths whose sum is `a` (or `a + b`, entry by entry), buffers of
+    /// the layout's length; only their stored entries are read.
+    ///
+    /// A full matrix is updated in blocks of rows in parallel (rayon): the update is
+    /// memory-bound, and it runs between chunks of batches while the batch workers wait. Every
+    /// entry is computed the same way on any thread, so the result does not depend on threads.
+    pub fn add_batch(&mut self, n: u64, a: &[Complex64], b: Option<&[Complex64]>) {
         let inv = 1.0 / n as f64;
-        let mut add = |idx: usize| {
-            let s = f(idx);
-            self.sum[idx] += s;
-            self.sq_re[idx] += s.re * s.re * inv;
-            self.sq_im[idx] += s.im * s.im * inv;
-        };
+        let j = self.j;
+        let (sum, sq_re, sq_im) = (&mut self.sum, &mut self.sq_re, &mut self.sq_im);
         match self.layout {
-            Layout::Full => {
-                for r in 0..self.j {
-                    (r * self.j + r..(r + 1) * self.j).for_each(&mut add);
-                }
+            Layout::Diagonal => add_span(sum, sq_re, sq_im, a, b, inv),
+            Layout::Full if j * j < PARALLEL_ENTRIES => {
+                add_rows(0, j, sum, sq_re, sq_im, a, b, inv);
             }
-            Layout::Diagonal => (0..self.j).for_each(add),
+            Layout::Full => {
+                let rows = (PARALLEL_ENTRIES / j).max(1);
+                let len = rows * j;
+                sum.par_chunks_mut(len)
+                    .zip(sq_re.par_chunks_mut(len))
+                    .zip(sq_im.par_chunks_mut(len))
+                    .enumerate()
+                    .for_each(|(c, ((sum, sq_re), sq_im))| {
+                        let span = c * len..c * len + sum.len();
+                        let (a, b) = (&a[span.clone()], b.map(|b| &b[span]));
+                        add_rows(c * rows, j, sum, sq_re, sq_im, a, b, inv);
+                    });
+            }
         }
         self.paths += n;
         self.batches += 1;
@@ -139,23 +228,65 @@ impl Moments {
     }
 }
 
-/// Adds `weight * a a^H` to the upper triangle of the row-major `J x J` matrix `m`.
-#[inline]
-pub(crate) fn rank1_upper(
-    m: &mut [Complex64],
+/// Entries of a full matrix below which [`Moments::add_batch`] runs on one thread, and about the
+/// entries of each parallel task above.
+const PARALLEL_ENTRIES: usize = 1 << 15;
+
+/// Adds the upper triangles of rows `first..` of the batch sums `a` (or `a + b`) of a
+/// row-major `J`-column matrix to the moments (`inv = 1 / n`); all slices start at row `first`.
+#[allow(clippy::too_many_arguments)]
+fn add_rows(
+    first: usize,
+    j: usize,
+    sum: &mut [Complex64],
+    sq_re: &mut [f64],
+    sq_im: &mut [f64],
     a: &[Complex64],
-    conj: &mut [Complex64],
-    weight: f64,
+    b: Option<&[Complex64]>,
+    inv: f64,
 ) {
-    let j = a.len();
-    for (c, x) in conj.iter_mut().zip(a) {
-        *c = x.conj();
+    for i in 0..sum.len() / j {
+        let range = i * j + first + i..(i + 1) * j;
+        add_span(
+            &mut sum[range.clone()],
+            &mut sq_re[range.clone()],
+            &mut sq_im[range.clone()],
+            &a[range.clone()],
+            b.map(|b| &b[range]),
+            inv,
+        );
     }
-    for r in 0..j {
-        let ar = a[r] * weight;
-        let row = &mut m[r * j + r..(r + 1) * j];
-        for (s, c) in row.iter_mut().zip(&conj[r..]) {
-            *s += ar * c;
-        }
+}
+
+/// Adds the batch sums `a` (or `a + b`) to `sum` and their squares over `n` (`inv = 1 / n`) to
+/// `sq_re`, `sq_im`, entry by entry.
+#[inline(always)]
+fn add_span(
+    sum: &mut [Complex64],
+    sq_re: &mut [f64],
+    sq_im: &mut [f64],
+    a: &[Complex64],
+    b: Option<&[Complex64]>,
+    inv: f64,
+) {
+    match b {
+        None => add_row(sum, sq_re, sq_im, a.iter().copied(), inv),
+        Some(b) => add_row(sum, sq_re, sq_im, a.iter().zip(b).map(|(x, y)| x + y), inv),
+    }
+}
+
+/// Adds the batch sums `s` to `sum` and `s^2 / n` (`inv = 1 / n`) to the squares, entry by entry.
+#[inline(always)]
+fn add_row(
+    sum: &mut [Complex64],
+    sq_re: &mut [f64],
+    sq_im: &mut [f64],
+    s: impl Iterator<Item = Complex64>,
+    inv: f64,
+) {
+    for (((t, re), im), s) in sum.iter_mut().zip(sq_re).zip(sq_im).zip(s) {
+        *t += s;
+        *re += s.re * s.re * inv;
+        *im += s.im * s.im * inv;
     }
 }
