@@ -69,31 +69,50 @@ impl Batches {
 
 /// Runs `work(b)` for `b in 0..count` in parallel and calls `merge(b, result)` in order of `b`.
 /// `work` returns `None` when cancelled; then this returns `false` and merges nothing further.
-pub(crate) fn run_ordered<T, W, G>(
-    count: usize,
-    bytes_per_item: usize,
-    work: W,
-    mut merge: G,
-) -> bool
+///
+/// Batches run in chunks; the merge of one chunk (sequential, in batch order) overlaps the
+/// computation of the next (`rayon::join`), so no core idles while results are merged. At most
+/// two chunks of results are held at once, and a chunk is sized so that both fit the memory
+/// budget. The order of the merge, and so the output, does not depend on the number of threads.
+pub(crate) fn run_ordered<T, W, G>(count: usize, bytes_per_item: usize, work: W, merge: G) -> bool
 where
     T: Send,
     W: Fn(usize) -> Option<T> + Sync,
-    G: FnMut(usize, T),
+    G: FnMut(usize, T) + Send,
 {
     let threads = rayon::current_num_threads().max(1);
-    let by_memory = (MEMORY_BUDGET / bytes_per_item.max(1)).max(1);
-    let chunk = (2 * threads).min(by_memory).max(1);
-    let mut start = 0;
-    while start < count {
+    let by_memory = (MEMORY_BUDGET / 2 / bytes_per_item.max(1)).max(1);
+    let chunk = (4 * threads).min(by_memory).max(1);
+    let compute = |start: usize| -> Vec<Option<T>> {
         let end = (start + chunk).min(count);
-        let results: Vec<Option<T>> = (start..end).into_par_iter().map(&work).collect();
+        (start..end).into_par_iter().map(&work).collect()
+    };
+    // Merges a chunk's results in order; false once a batch was cancelled.
+    let mut merge = merge;
+    let mut merge_chunk = |start: usize, results: Vec<Option<T>>| -> bool {
         for (offset, r) in results.into_iter().enumerate() {
             match r {
                 Some(t) => merge(start + offset, t),
                 None => return false,
             }
         }
-        start = end;
+        true
+    };
+    if count == 0 {
+        return true;
     }
-    true
+    let mut pending = (0, compute(0));
+    let mut next = chunk;
+    while next < count {
+        let (merged, results) = rayon::join(
+            || merge_chunk(pending.0, std::mem::take(&mut pending.1)),
+            || compute(next),
+        );
+        if !merged {
+            return false;
+        }
+        pending = (next, results);
+        next += chunk;
+    }
+    merge_chunk(pending.0, pending.1)
 }
