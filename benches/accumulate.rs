@@ -14,16 +14,16 @@
 //! vectors from a fixed xorshift sequence, renders with seed 1. Run with
 //! `cargo bench --bench accumulate` (one group: append its name, e.g. `-- rank_k/`).
 
+mod common;
+
+use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use faer::{Accum, Mat, Par};
 use num_complex::Complex64;
 use speckle::estimators::{
-    BLOCK_COLUMNS, BlockAccumulator, Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor,
-    Source, rank1_upper, render_covariance,
+    BLOCK_COLUMNS, BlockAccumulator, Coherence, CovarianceOptions, NoProgress, rank1_upper,
+    render_covariance,
 };
-use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
-use speckle::phase::Phase;
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -176,30 +176,6 @@ fn depth(c: &mut Criterion) {
         }
     }
     g.finish();
-}
-
-/// The slab of `benches/render.rs` (40 x 40 x 10 wavelengths, mean free path 5, HG g = 0.5) with
-/// `n_src` plane waves and `n_sens` far-field sensors around the forward direction.
-fn scene(n_src: usize, n_sens: usize) -> Scene<HomogeneousBox, Phase> {
-    let b = Aabb::centered(DVec3::ZERO, DVec3::new(40.0, 40.0, 10.0)).unwrap();
-    let m = HomogeneousBox::from_mean_free_path(b, 5.0, 1.0).unwrap();
-    let tilt = |n: usize, step: f64| DVec3::new(step * n as f64, 0.0, 1.0);
-    let src = (0..n_src)
-        .map(|n| Source::plane_wave(tilt(n, 0.01)).unwrap())
-        .collect();
-    let sen = (0..n_sens)
-        .map(|n| Sensor::far_field(tilt(n, 0.005)).unwrap())
-        .collect();
-    Scene::new(
-        m,
-        Phase::hg(0.5).unwrap(),
-        1.0,
-        src,
-        sen,
-        Pair::all(n_src, n_sens),
-        TracerConfig::default(),
-    )
-    .unwrap()
 }
 
 /// (3) End-to-end covariance renders (4096 paths, seed 1, both path orders, the global rayon

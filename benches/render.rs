@@ -4,39 +4,17 @@
 //! (`*/connections`: every sampled vertex, single-scattering ones included, is connected to every
 //! source and every sensor). Fixed seeds; run with `cargo bench --bench render`.
 
+mod common;
+
+use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use speckle::estimators::{
-    Coherence, CovarianceOptions, FieldOptions, NoProgress, Pair, Scene, Sensor, Source,
-    render_covariance, render_fields,
+    Coherence, CovarianceOptions, FieldOptions, NoProgress, Scene, render_covariance, render_fields,
 };
-use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::{PathRng, TracerConfig, Vertex, VertexSink};
+use speckle::medium::{DVec3, HomogeneousBox};
+use speckle::paths::{PathRng, Vertex, VertexSink};
 use speckle::phase::Phase;
 use std::hint::black_box;
-
-/// A 40 x 40 x 10 wavelength slab, mean free path 5 (optical depth 2), HG g = 0.5, with
-/// `n_src` plane waves and `n_sens` far-field sensors around the forward direction.
-fn scene(n_src: usize, n_sens: usize) -> Scene<HomogeneousBox, Phase> {
-    let b = Aabb::centered(DVec3::ZERO, DVec3::new(40.0, 40.0, 10.0)).unwrap();
-    let m = HomogeneousBox::from_mean_free_path(b, 5.0, 1.0).unwrap();
-    let tilt = |n: usize, step: f64| DVec3::new(step * n as f64, 0.0, 1.0);
-    let src = (0..n_src)
-        .map(|n| Source::plane_wave(tilt(n, 0.01)).unwrap())
-        .collect();
-    let sen = (0..n_sens)
-        .map(|n| Sensor::far_field(tilt(n, 0.005)).unwrap())
-        .collect();
-    Scene::new(
-        m,
-        Phase::hg(0.5).unwrap(),
-        1.0,
-        src,
-        sen,
-        Pair::all(n_src, n_sens),
-        TracerConfig::default(),
-    )
-    .unwrap()
-}
 
 struct Count(u64);
 impl VertexSink for Count {
