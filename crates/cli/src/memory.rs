@@ -302,16 +302,7 @@ fn parse(text: &str) -> Result<StudyFile, InputError> {
 
 /// Loads and validates a study file.
 pub fn load_file(path: &Path, overrides: &StudyOverrides) -> Result<Study, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        InputError(format!(
-            "cannot read the study file {}: {e}",
-            path.display()
-        ))
-    })?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "memory".into());
+    let (text, stem) = crate::scene::read_input(path, "study")?;
     load_str(&text, &path.display().to_string(), &stem, overrides)
 }
 

@@ -322,18 +322,25 @@ fn tagged_culprit(text: &str, path: &serde_path_to_error::Path, message: &str) -
         .cloned()
 }
 
-/// Loads and validates a scene file.
-pub fn load_file(path: &Path, overrides: &Overrides) -> Result<Loaded, InputError> {
+/// Reads an input file (`what`: "scene", "study") and returns its text and its stem (the default
+/// output name; `what` when the path has none).
+pub(crate) fn read_input(path: &Path, what: &str) -> Result<(String, String), InputError> {
     let text = std::fs::read_to_string(path).map_err(|e| {
         InputError(format!(
-            "cannot read the scene file {}: {e}",
+            "cannot read the {what} file {}: {e}",
             path.display()
         ))
     })?;
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scene".into());
+        .unwrap_or_else(|| what.into());
+    Ok((text, stem))
+}
+
+/// Loads and validates a scene file.
+pub fn load_file(path: &Path, overrides: &Overrides) -> Result<Loaded, InputError> {
+    let (text, stem) = read_input(path, "scene")?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     load_str(&text, &path.display().to_string(), &base, &stem, overrides)
 }
