@@ -20,10 +20,8 @@ use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use faer::{Accum, Mat, Par};
 use num_complex::Complex64;
-use speckle::estimators::{
-    BLOCK_COLUMNS, BlockAccumulator, Coherence, CovarianceOptions, NoProgress, rank1_upper,
-    render_covariance,
-};
+use speckle::estimators::{Coherence, CovarianceOptions, NoProgress, render_covariance};
+use speckle::stats::{BLOCK_COLUMNS, BlockAccumulator, rank1_upper};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -190,6 +188,7 @@ fn end_to_end(c: &mut Criterion) {
             paths,
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         };
         g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
             b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))

@@ -17,12 +17,12 @@
 //! A 40 x 40 x 10 wavelength slab of mean free path 5, HG g = 0.5; fixed seeds. Run with
 //! `cargo bench --bench connect` (per core: `RAYON_NUM_THREADS=1`).
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use speckle::estimators::fastmath::{self, Endpoints};
+use speckle::endpoints::{Endpoints, fastmath};
 use speckle::estimators::{
     Coherence, FieldOptions, NoProgress, Pair, Scene, Sensor, Source, render_fields,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox, Medium};
-use speckle::paths::{PathRng, TracerConfig, Vertex, VertexSink};
+use speckle::paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle::phase::{Complex64, Phase, PhaseFunction, TabulatedAmplitude};
 use std::hint::black_box;
 
@@ -213,7 +213,6 @@ fn scene(n_src: usize, sensors: Vec<Sensor>) -> Scene<HomogeneousBox, Phase> {
         src,
         sensors,
         Pair::all(n_src, nv),
-        TracerConfig::default(),
     )
     .unwrap()
 }
@@ -221,7 +220,7 @@ fn scene(n_src: usize, sensors: Vec<Sensor>) -> Scene<HomogeneousBox, Phase> {
 /// Mean number of vertices per path of the benchmark slab (x1 included).
 fn vertices_per_path(paths: u64) -> f64 {
     let s = scene(1, far_sensors(1));
-    let t = s.tracer().unwrap();
+    let t = Tracer::with_types(s.medium(), s.phases(), TracerConfig::default()).unwrap();
     let mut cnt = Count(0);
     for p in 0..paths {
         t.trace(&mut PathRng::new(9, p), &mut cnt);
@@ -231,7 +230,7 @@ fn vertices_per_path(paths: u64) -> f64 {
 
 fn sampling(c: &mut Criterion) {
     let s = scene(1, far_sensors(1));
-    let t = s.tracer().unwrap();
+    let t = Tracer::with_types(s.medium(), s.phases(), TracerConfig::default()).unwrap();
     let paths = 100_000u64;
     let vertices = (vertices_per_path(paths) * paths as f64).round() as u64;
     eprintln!(
@@ -264,6 +263,7 @@ fn fields(c: &mut Criterion) {
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         };
         let connections = (per_path * (n_src + n_sens) as f64 * paths as f64) as u64;
         for (unit, n) in [("paths", paths), ("connections", connections)] {

@@ -12,7 +12,7 @@ use speckle::estimators::{
     Coherence, CovarianceOptions, FieldOptions, NoProgress, Scene, render_covariance, render_fields,
 };
 use speckle::medium::{DVec3, HomogeneousBox};
-use speckle::paths::{PathRng, Vertex, VertexSink};
+use speckle::paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle::phase::Phase;
 use std::hint::black_box;
 
@@ -28,7 +28,7 @@ impl VertexSink for Count {
 
 /// Mean number of vertices per path of a scene, from its own tracer.
 fn vertices_per_path(s: &Scene<HomogeneousBox, Phase>, paths: u64) -> f64 {
-    let t = s.tracer().unwrap();
+    let t = Tracer::with_types(s.medium(), s.phases(), TracerConfig::default()).unwrap();
     let mut c = Count(0);
     for p in 0..paths {
         t.trace(&mut PathRng::new(9, p), &mut c);
@@ -46,6 +46,7 @@ fn covariance(c: &mut Criterion) {
             paths,
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         };
         let id = format!("J={}", s.len());
         for (unit, n) in [("paths", paths), ("connections", connections)] {
@@ -71,6 +72,7 @@ fn fields(c: &mut Criterion) {
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         };
         let id = format!("J={}", s.len());
         for (unit, count) in [("paths", n), ("connections", connections)] {

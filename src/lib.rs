@@ -4,11 +4,15 @@
 //! Alterman, Gkioulekas and Levin, *A Monte Carlo framework for rendering speckle statistics in
 //! scattering media*, ACM TOG 38(4), 2019.
 //!
-//! This facade only re-exports the workspace crates, one concept each:
+//! This facade only re-exports the workspace crates, one concept each (see `ARCHITECTURE.md`):
 //!
-//! - [`medium`]: bulk media and their geometry;
+//! - [`vmf`]: complex von Mises-Fisher algebra and vMF-mixture amplitudes;
 //! - [`phase`]: phase and scattering-amplitude functions;
-//! - [`paths`]: counter-based random streams and volumetric sub-path sampling;
+//! - [`medium`]: bulk media and their geometry;
+//! - [`stats`]: random streams, batch-means accumulation and the deterministic batch driver;
+//! - [`endpoints`]: sources and sensors, their connections to the medium and mean fields;
+//! - [`paths`]: volumetric sub-path sampling;
+//! - [`scene`]: the problem description (a validated scene);
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
 //!   scatterers, averaged over random configurations).
@@ -16,9 +20,12 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub use speckle_endpoints as endpoints;
 pub use speckle_estimators as estimators;
 pub use speckle_medium as medium;
 pub use speckle_paths as paths;
 pub use speckle_phase as phase;
+pub use speckle_scene as scene;
+pub use speckle_stats as stats;
 pub use speckle_vmf as vmf;
 pub use speckle_wave as wave;

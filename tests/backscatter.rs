@@ -34,7 +34,6 @@ use speckle::estimators::{
     render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::Phase;
 use std::f64::consts::TAU;
 
@@ -74,7 +73,6 @@ fn coherent_backscattering_cone() {
         vec![Source::plane_wave(DVec3::Z).unwrap()],
         sensors,
         Pair::all(1, thetas.len()),
-        TracerConfig::default(),
     )
     .unwrap();
     let render = |coherence| {
@@ -84,6 +82,7 @@ fn coherent_backscattering_cone() {
                 paths: PATHS,
                 seed: 31,
                 coherence,
+                ..Default::default()
             },
             &NoProgress,
         )

@@ -44,14 +44,16 @@ fn scene() -> Scene<HomogeneousBox, Phase> {
             },
         ],
         Pair::all(2, 3),
-        TracerConfig {
-            first_vertex: FirstVertex::Uniform,
-            first_direction: FirstDirection::Phase { axis: DVec3::Z },
-            max_vertices: u32::MAX,
-        },
     )
     .unwrap()
 }
+
+/// The sampling of every render here: first directions from the phase function about +z.
+const SAMPLING: TracerConfig = TracerConfig {
+    first_vertex: FirstVertex::Uniform,
+    first_direction: FirstDirection::Phase { axis: DVec3::Z },
+    max_vertices: u32::MAX,
+};
 
 /// Covariance paths: not a multiple of the 128 batches.
 const PATHS: u64 = 10_007;
@@ -73,6 +75,7 @@ fn covariance(
         paths: PATHS,
         seed,
         coherence,
+        sampling: SAMPLING,
     };
     render_covariance(s, &opts, &NoProgress).unwrap()
 }
@@ -82,6 +85,7 @@ fn single(s: &Scene<HomogeneousBox, Phase>, seed: u64) -> MatrixEstimate {
         paths: PATHS,
         seed,
         coherence: Coherence::ForwardAndReversed,
+        sampling: SAMPLING,
     };
     render_single_scattering(s, &opts, &NoProgress).unwrap()
 }
@@ -93,6 +97,7 @@ fn fields(s: &Scene<HomogeneousBox, Phase>, seed: u64) -> FieldEstimate {
         seed,
         coherence: Coherence::ForwardAndReversed,
         add_mean: true,
+        sampling: SAMPLING,
     };
     render_fields(s, &opts, &NoProgress).unwrap()
 }

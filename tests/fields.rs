@@ -11,12 +11,11 @@ use common_b::{mean_se, tilted};
 use num_complex::Complex64;
 use speckle::estimators::{
     CMatrix, Coherence, CovarianceEstimate, CovarianceOptions, FieldEstimate, FieldOptions,
-    NoProgress, Pair, Scene, Sensor, Source, empirical_moments, render_covariance, render_fields,
-    speckle_means,
+    NoProgress, Pair, Scene, Sensor, Source, render_covariance, render_fields,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::Phase;
+use speckle::stats::empirical_moments;
 use std::sync::OnceLock;
 
 /// Realizations `R` of the field vector.
@@ -48,7 +47,6 @@ fn slab_scene() -> Scene<HomogeneousBox, Phase> {
         sources,
         sensors,
         Pair::all(2, 4),
-        TracerConfig::default(),
     )
     .unwrap()
 }
@@ -79,6 +77,7 @@ fn render(scene: &Scene<HomogeneousBox, Phase>) -> (CovarianceEstimate, FieldEst
             paths: 1_000_000,
             seed: 7,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -91,6 +90,7 @@ fn render(scene: &Scene<HomogeneousBox, Phase>) -> (CovarianceEstimate, FieldEst
             seed: 8,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -130,6 +130,7 @@ fn empirical_field_covariance_matches_the_covariance_render_heavy() {
             paths: 4_000_000,
             seed: 17,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -142,6 +143,7 @@ fn empirical_field_covariance_matches_the_covariance_render_heavy() {
             seed: 18,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -249,7 +251,7 @@ fn intensity_covariance_of_fields_is_siegert() {
 /// With `add_mean`, every realization is the zero-mean fluctuation plus the speckle mean: a point
 /// source 3 below and a point sensor 3 above the centre of a slab 6 x 6 x 1 of optical depth 0.5
 /// (attenuated direct field `e^{-0.25} / 6`, and a second source 2 off axis). Checks:
-/// - `FieldEstimate::mean` is `speckle_means(scene)` exactly;
+/// - `FieldEstimate::mean` is `scene.means()` exactly;
 /// - with the same seed, fields with the mean minus fields without it equal the mean to 1e-12
 ///   (the fluctuations do not depend on `add_mean`);
 /// - the empirical mean of the `R = 2000` realizations ([`empirical_moments`]) matches the
@@ -275,7 +277,6 @@ fn field_mean_is_added_when_asked() {
             position: DVec3::new(0.0, 0.0, 3.0),
         }],
         Pair::all(2, 1),
-        TracerConfig::default(),
     )
     .unwrap();
     let opts = |add_mean| FieldOptions {
@@ -284,10 +285,11 @@ fn field_mean_is_added_when_asked() {
         seed: 21,
         coherence: Coherence::ForwardAndReversed,
         add_mean,
+        ..Default::default()
     };
     let with = render_fields(&scene, &opts(true), &NoProgress).unwrap();
     let without = render_fields(&scene, &opts(false), &NoProgress).unwrap();
-    let m = speckle_means(&scene).unwrap();
+    let m = scene.means().unwrap();
     assert_eq!(with.mean, m);
     assert!(without.mean.iter().all(|z| *z == Complex64::new(0.0, 0.0)));
     assert_eq!(m.len(), scene.len());

@@ -14,10 +14,9 @@
 
 use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
-    render_single_scattering, speckle_mean,
+    render_single_scattering,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox, Material, Medium, VoxelGrid};
-use speckle::paths::TracerConfig;
 use speckle::phase::{Phase, PhaseFunction};
 
 const LAMBDA: f64 = 0.1;
@@ -47,7 +46,6 @@ fn scene<M: Medium>(m: M) -> Scene<M, Phase> {
         sources,
         sensors,
         Pair::all(2, 4),
-        TracerConfig::default(),
     )
     .unwrap()
 }
@@ -68,6 +66,7 @@ fn constant_grid_gives_the_homogeneous_covariance() {
         paths: 400_000,
         seed,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     let a = render_covariance(&scene(grid), &o(1), &NoProgress).unwrap();
     let b = render_covariance(&scene(boxed), &o(2), &NoProgress).unwrap();
@@ -178,6 +177,7 @@ fn two_layer_single_scattering_matches_quadrature() {
             paths: 400_000,
             seed: 3,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -217,10 +217,9 @@ fn two_layer_mean_field_is_the_layered_transmittance() {
         vec![Source::Point { position: p }],
         vec![Sensor::Point { position: q }],
         Pair::all(1, 1),
-        TracerConfig::default(),
     )
     .unwrap();
-    let m = speckle_mean(&s, Pair::all(1, 1)[0]).unwrap();
+    let m = s.mean(Pair::all(1, 1)[0]).unwrap();
     let d = (q - p).normalize();
     // Path length inside each layer: dz / cos.
     let len = 1.0 / d.z.abs();

@@ -28,7 +28,7 @@ use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::{PathRng, TracerConfig};
+use speckle::paths::PathRng;
 use speckle::phase::Phase;
 use std::f64::consts::TAU;
 
@@ -199,7 +199,6 @@ fn forward_only_intensity_matches_photon_tracer() {
             })
             .collect(),
         Pair::all(sources.len(), sensors.len()),
-        TracerConfig::default(),
     )
     .unwrap();
     let lib = render_covariance(
@@ -208,6 +207,7 @@ fn forward_only_intensity_matches_photon_tracer() {
             paths: 1 << 22,
             seed: 21,
             coherence: Coherence::ForwardOnly,
+            ..Default::default()
         },
         &NoProgress,
     )

@@ -71,10 +71,16 @@ fn covariance_peaks_on_the_shifted_diagonal() {
         sources,
         sensors,
         Pair::all(ms.len(), nv),
-        TracerConfig::default(),
     )
     .unwrap();
-    let groups = Groups::render(&scene, 20_000, GROUPS, 11, Coherence::ForwardAndReversed);
+    let groups = Groups::render(
+        &scene,
+        20_000,
+        GROUPS,
+        11,
+        Coherence::ForwardAndReversed,
+        TracerConfig::default(),
+    );
     let c = groups.pooled();
     let g0 = &groups.groups[0];
     let single: f64 = (0..nv).map(|j| g0.single.value.get(j, j).re).sum();
@@ -167,12 +173,7 @@ fn covariance_peaks_on_the_shifted_diagonal() {
 /// `(i_n, v_n)` per value `x_n` of `k theta L`: `i_n = v_n` tilted by `asin(x_n / (k L))`, so
 /// that `i_0 - i_n = v_0 - v_n = omega` and each path carries the phase `e^{i k omega . (x_1 - x_B)}`
 /// of Eq. 40.
-fn diffusion_scene(
-    od: f64,
-    width_over_l: f64,
-    xs: &[f64],
-    first_vertex: FirstVertex,
-) -> Scene<HomogeneousBox, Phase> {
+fn diffusion_scene(od: f64, width_over_l: f64, xs: &[f64]) -> Scene<HomogeneousBox, Phase> {
     let (l, k) = (od, 100.0);
     let slab = Aabb::centered(
         DVec3::ZERO,
@@ -197,10 +198,6 @@ fn diffusion_scene(
                 sensor: n,
             })
             .collect(),
-        TracerConfig {
-            first_vertex,
-            ..TracerConfig::default()
-        },
     )
     .unwrap()
 }
@@ -339,23 +336,29 @@ fn diffusion_curve(od: f64, label: &str, paths: [u64; 2], seeds: [u64; 2]) {
     let exp = FirstVertex::ExponentialDepth {
         direction: DVec3::Z,
     };
+    let scene = diffusion_scene(od, WIDTH_OVER_L, &xs);
     let fo = Groups::render(
-        &diffusion_scene(od, WIDTH_OVER_L, &xs, exp),
+        &scene,
         paths[0],
         GROUPS,
         seeds[0],
         Coherence::ForwardOnly,
+        TracerConfig {
+            first_vertex: exp,
+            ..TracerConfig::default()
+        },
     );
     let rho_fo = correlations(&fo, xs.len());
     eprintln!("diffusion curve, OD {od}, forward paths only, exponential first vertex:");
     check_decay(&format!("{label}forward only"), &fo, &xs);
     check_against_eq39(&format!("{label}forward only"), od, &xs, &rho_fo);
     let fr = Groups::render(
-        &diffusion_scene(od, WIDTH_OVER_L, &xs, FirstVertex::Uniform),
+        &scene,
         paths[1],
         GROUPS,
         seeds[1],
         Coherence::ForwardAndReversed,
+        TracerConfig::default(),
     );
     let rho_fr = correlations(&fr, xs.len());
     eprintln!("diffusion curve, OD {od}, forward and reversed paths, uniform first vertex:");

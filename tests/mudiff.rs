@@ -33,7 +33,6 @@ use speckle::estimators::{
     render_intensity,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::{Complex64, FlatTabulatedAmplitude, Phase, rotate_in_plane};
 use std::sync::Arc;
 
@@ -101,13 +100,13 @@ fn render(step: usize, paths: u64) -> (Vec<(f64, f64)>, CovarianceEstimate) {
         vec![Source::plane_wave(i).unwrap()],
         sensors,
         Pair::all(1, n),
-        TracerConfig::default(),
     )
     .unwrap();
     let opts = CovarianceOptions {
         paths,
         seed: 2019,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     (d, render_intensity(&scene, &opts, &NoProgress).unwrap())
 }

@@ -24,12 +24,11 @@ mod common_b;
 use common_b::tilted;
 use speckle::estimators::{
     Coherence, CovarianceOptions, FieldOptions, MatrixEstimate, NoProgress, Pair, Scene, Sensor,
-    Source, empirical_moments, render_covariance, render_fields, render_intensity,
-    render_single_scattering,
+    Source, render_covariance, render_fields, render_intensity, render_single_scattering,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::{HgMixture, Phase};
+use speckle::stats::empirical_moments;
 use std::sync::Arc;
 
 const Z_MAX: f64 = 4.5;
@@ -63,16 +62,7 @@ fn typed_scene(
     ends: (Vec<Source>, Vec<Sensor>, Vec<Pair>),
 ) -> Scene<HomogeneousBox, Phase> {
     let m = HomogeneousBox::with_types(slab(), SIGMA_S, SIGMA_A, BETA.to_vec()).unwrap();
-    Scene::with_types(
-        m,
-        phases,
-        LAMBDA,
-        ends.0,
-        ends.1,
-        ends.2,
-        TracerConfig::default(),
-    )
-    .unwrap()
+    Scene::with_types(m, phases, LAMBDA, ends.0, ends.1, ends.2).unwrap()
 }
 
 fn single_scene(
@@ -80,16 +70,7 @@ fn single_scene(
     ends: (Vec<Source>, Vec<Sensor>, Vec<Pair>),
 ) -> Scene<HomogeneousBox, Phase> {
     let m = HomogeneousBox::new(slab(), SIGMA_S, SIGMA_A).unwrap();
-    Scene::new(
-        m,
-        phase,
-        LAMBDA,
-        ends.0,
-        ends.1,
-        ends.2,
-        TracerConfig::default(),
-    )
-    .unwrap()
+    Scene::new(m, phase, LAMBDA, ends.0, ends.1, ends.2).unwrap()
 }
 
 fn two_types() -> Vec<Phase> {
@@ -101,6 +82,7 @@ fn options(paths: u64, seed: u64, coherence: Coherence) -> CovarianceOptions {
         paths,
         seed,
         coherence,
+        ..Default::default()
     }
 }
 
@@ -227,6 +209,7 @@ fn two_type_fields_have_the_two_type_covariance() {
             seed: 10,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         },
         &NoProgress,
     )

@@ -5,7 +5,7 @@
 //! reciprocal (`scene.reciprocal()`: pairs `(i, v)` become `(-v, -i)`) are equal path by path,
 //! up to rounding, when the same seed is used, because
 //! - the sub-path sampler (first vertex, first direction, flights, roulette) depends only on the
-//!   medium, the phase function and the tracer configuration, which the reciprocal scene copies
+//!   medium, the phase function and the sampling configuration, which both renders share
 //!   (`paths/src/tracer.rs`, `paths/src/first.rs`: `ExponentialDepth` and `Phase { axis }` take
 //!   their direction from the configuration, not from the endpoints), so both renders trace the
 //!   same paths;
@@ -143,15 +143,6 @@ fn build(p: &Params) -> Scene<HomogeneousBox, Phase> {
             End::Point(position) => Sensor::Point { position },
         })
         .collect();
-    let tracer = TracerConfig {
-        first_vertex: p.first_vertex.map_or(FirstVertex::Uniform, |direction| {
-            FirstVertex::ExponentialDepth { direction }
-        }),
-        first_direction: p.first_direction.map_or(FirstDirection::Uniform, |axis| {
-            FirstDirection::Phase { axis }
-        }),
-        max_vertices: u32::MAX,
-    };
     Scene::new(
         medium,
         Phase::hg(p.g).unwrap(),
@@ -159,9 +150,21 @@ fn build(p: &Params) -> Scene<HomogeneousBox, Phase> {
         sources,
         sensors,
         Pair::all(p.sources.len(), p.sensors.len()),
-        tracer,
     )
     .unwrap()
+}
+
+/// The sampling strategies of the case: the same for a scene and its reciprocal.
+fn sampling(p: &Params) -> TracerConfig {
+    TracerConfig {
+        first_vertex: p.first_vertex.map_or(FirstVertex::Uniform, |direction| {
+            FirstVertex::ExponentialDepth { direction }
+        }),
+        first_direction: p.first_direction.map_or(FirstDirection::Uniform, |axis| {
+            FirstDirection::Phase { axis }
+        }),
+        max_vertices: u32::MAX,
+    }
 }
 
 fn render(s: &Scene<HomogeneousBox, Phase>, p: &Params, c: Coherence) -> CovarianceEstimate {
@@ -169,6 +172,7 @@ fn render(s: &Scene<HomogeneousBox, Phase>, p: &Params, c: Coherence) -> Covaria
         paths: p.paths,
         seed: p.seed,
         coherence: c,
+        sampling: sampling(p),
     };
     render_covariance(s, &opts, &NoProgress).unwrap()
 }
@@ -333,7 +337,8 @@ proptest! {
             paths: p.paths,
             seed: p.seed,
             coherence: Coherence::ForwardAndReversed,
-        };
+        ..Default::default()
+    };
         assert_hermitian("single-scattering render", &render_single_scattering(&s, &opts, &NoProgress).unwrap());
     }
 

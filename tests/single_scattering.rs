@@ -71,7 +71,7 @@ impl Problem {
             .collect()
     }
 
-    fn scene(&self, tracer: TracerConfig) -> Scene<HomogeneousBox, Phase> {
+    fn scene(&self) -> Scene<HomogeneousBox, Phase> {
         let aabb = Aabb::centered(DVec3::ZERO, self.size).unwrap();
         let medium = HomogeneousBox::new(aabb, self.sigma_s, self.sigma_a).unwrap();
         let sources = self
@@ -102,7 +102,6 @@ impl Problem {
             sources,
             sensors,
             pairs,
-            tracer,
         )
         .unwrap()
     }
@@ -405,13 +404,14 @@ fn converged_quadrature(p: &Problem, h: f64, ests: &[&MatrixEstimate]) -> CMatri
 
 /// Compares all three single-scattering estimates of `p` with the quadrature.
 fn compare(label: &str, p: &Problem, paths_cov: u64, paths_single: u64) -> f64 {
-    let uniform = p.scene(TracerConfig::default());
+    let uniform = p.scene();
     let cov = render_covariance(
         &uniform,
         &CovarianceOptions {
             paths: paths_cov,
             seed: 11,
             coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
         },
         &NoProgress,
     )
@@ -421,18 +421,19 @@ fn compare(label: &str, p: &Problem, paths_cov: u64, paths_single: u64) -> f64 {
         paths: paths_single,
         seed: 12,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     let single = render_single_scattering(&uniform, &single_opts, &NoProgress).unwrap();
-    let exponential = p.scene(TracerConfig {
-        first_vertex: FirstVertex::ExponentialDepth {
-            direction: DVec3::Z,
-        },
-        ..TracerConfig::default()
-    });
     let single_exp = render_single_scattering(
-        &exponential,
+        &uniform,
         &CovarianceOptions {
             seed: 13,
+            sampling: TracerConfig {
+                first_vertex: FirstVertex::ExponentialDepth {
+                    direction: DVec3::Z,
+                },
+                ..TracerConfig::default()
+            },
             ..single_opts
         },
         &NoProgress,

@@ -31,20 +31,12 @@ fn render(tracer: TracerConfig, seed: u64) -> CovarianceEstimate {
             position: DVec3::new(1.0, 0.0, 9.0),
         },
     ];
-    let s = Scene::new(
-        m,
-        Phase::hg(0.6).unwrap(),
-        1.0,
-        src,
-        sen,
-        Pair::all(2, 4),
-        tracer,
-    )
-    .unwrap();
+    let s = Scene::new(m, Phase::hg(0.6).unwrap(), 1.0, src, sen, Pair::all(2, 4)).unwrap();
     let opts = CovarianceOptions {
         paths: 400_000,
         seed,
         coherence: Coherence::ForwardAndReversed,
+        sampling: tracer,
     };
     render_covariance(&s, &opts, &NoProgress).unwrap()
 }

@@ -12,7 +12,6 @@ use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::{Dimension, Phase, rotate_in_plane};
 use speckle::wave::{WaveOptions, render_wave};
 use std::time::Instant;
@@ -52,7 +51,6 @@ fn scene(d: Dimension, side: f64, mfp: f64) -> Scene<HomogeneousBox, Phase> {
         vec![Source::plane_wave(i).unwrap()],
         sensors,
         Pair::all(1, ANGLES.len()),
-        TracerConfig::default(),
     )
     .unwrap()
 }
@@ -84,6 +82,7 @@ fn row(d: Dimension, side: f64, mfp: f64, configurations: usize, paths: u64) {
         paths,
         seed: 4,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     let c = render_covariance(&s, &opts, &NoProgress).unwrap();
     let tm = t.elapsed().as_secs_f64();

@@ -48,10 +48,9 @@
 
 use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
-    render_intensity, speckle_means,
+    render_intensity,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::{Complex64, Dimension, Phase};
 use speckle::wave::{WaveOptions, render_wave};
 
@@ -153,16 +152,7 @@ fn build(c: &Case) -> Built {
         .collect();
     let n = pairs.len();
     let phase = Phase::isotropic(d);
-    let scene = Scene::new(
-        medium,
-        phase,
-        1.0,
-        sources,
-        sensors,
-        pairs,
-        TracerConfig::default(),
-    )
-    .unwrap();
+    let scene = Scene::new(medium, phase, 1.0, sources, sensors, pairs).unwrap();
     assert_eq!(scene.len(), n);
     Built {
         scene,
@@ -202,6 +192,7 @@ fn run(c: &Case) {
         paths: c.paths,
         seed: 12,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     let t0 = std::time::Instant::now();
     let mc = render_covariance(s, &opts, &NoProgress).unwrap();
@@ -215,7 +206,7 @@ fn run(c: &Case) {
         &NoProgress,
     )
     .unwrap();
-    let means = speckle_means(s).unwrap();
+    let means = s.means().unwrap();
     println!(
         "{}: {} pairs, {:.1} scatterers per configuration (expected {:.1}), {} configurations \
          in {:.2?}; {} paths in {:.2?}",

@@ -2,7 +2,6 @@
 
 use speckle::estimators::{Pair, Scene, Sensor, Source};
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::Phase;
 
 /// A 40 x 40 x 10 wavelength slab, mean free path 5 (optical depth 2), HG g = 0.5, with
@@ -24,7 +23,6 @@ pub fn scene(n_src: usize, n_sens: usize) -> Scene<HomogeneousBox, Phase> {
         src,
         sen,
         Pair::all(n_src, n_sens),
-        TracerConfig::default(),
     )
     .unwrap()
 }

@@ -7,6 +7,7 @@ use speckle::estimators::{
     CMatrix, Coherence, CovarianceEstimate, CovarianceOptions, NoProgress, Scene, render_covariance,
 };
 use speckle::medium::{DVec3, Medium};
+use speckle::paths::TracerConfig;
 use speckle::phase::PhaseFunction;
 
 /// The unit direction in the x-z plane with x component `sx` and positive z component: a plane
@@ -15,7 +16,8 @@ pub fn tilted(sx: f64) -> DVec3 {
     DVec3::new(sx, 0.0, (1.0 - sx * sx).sqrt())
 }
 
-/// `K` independent covariance renders (seeds `seed, seed + 1, ...`) of `paths` paths each.
+/// `K` independent covariance renders (seeds `seed, seed + 1, ...`) of `paths` paths each, with
+/// the sampling strategies of `sampling`.
 /// Pooled over groups they are one render of `K paths`; the spread between groups gives
 /// jackknife standard errors of any smooth function of the matrix, correlations included.
 pub struct Groups {
@@ -31,6 +33,7 @@ impl Groups {
         k: usize,
         seed: u64,
         coherence: Coherence,
+        sampling: TracerConfig,
     ) -> Self {
         let groups = (0..k as u64)
             .map(|g| {
@@ -38,6 +41,7 @@ impl Groups {
                     paths,
                     seed: seed + g,
                     coherence,
+                    sampling,
                 };
                 render_covariance(scene, &opts, &NoProgress).unwrap()
             })

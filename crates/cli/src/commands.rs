@@ -9,10 +9,11 @@ use crate::{Cancelled, InputError};
 use serde_json::{Value, json};
 use speckle::estimators::{
     CMatrix, Coherence, CovarianceOptions, EstimatorError, FieldOptions, MatrixEstimate,
-    render_covariance, render_fields, render_intensity, render_single_scattering, speckle_means,
+    render_covariance, render_fields, render_intensity, render_single_scattering,
 };
 use speckle::medium::Dimension;
 use speckle::phase::Complex64;
+use speckle::scene::SceneError;
 use speckle::wave::{
     Kernel, WaveError, WaveOptions, expected_scatterers, number_density, render_wave,
 };
@@ -79,7 +80,6 @@ impl RenderError for WaveError {
     fn into_cli(self, l: &Loaded) -> anyhow::Error {
         match self {
             WaveError::Cancelled => Cancelled.into(),
-            WaveError::Estimator(e) => estimator_error(e),
             WaveError::InvalidInput { field, reason } => {
                 // The library's option `configurations` is `render.configurations` in a scene.
                 let field = match field.as_str() {
@@ -252,6 +252,7 @@ fn covariance_options(l: &Loaded) -> CovarianceOptions {
         paths: r.paths,
         seed: r.seed,
         coherence: l.coherence,
+        sampling: l.sampling,
     }
 }
 
@@ -306,10 +307,10 @@ fn field_rows_size(l: &Loaded, rows: usize, field: &str) -> anyhow::Result<()> {
 /// The speckle means of all pairs, or NaN (with a warning) where a closed form needs a
 /// homogeneous medium that the scene does not have: the far-field to far-field mean in a voxel
 /// grid of varying extinction.
-fn means_or_nan(l: &Loaded) -> Result<Vec<Complex64>, EstimatorError> {
-    match speckle_means(&l.scene) {
+fn means_or_nan(l: &Loaded) -> Result<Vec<Complex64>, SceneError> {
+    match l.scene.means() {
         Ok(m) => Ok(m),
-        Err(EstimatorError::InvalidInput { field, reason }) if field == "medium" => {
+        Err(SceneError::InvalidInput { field, reason }) if field == "medium" => {
             tell!(
                 "warning: {reason}; the speckle mean of those pairs is written as NaN (the \
                  covariance does not depend on it)"
@@ -317,8 +318,8 @@ fn means_or_nan(l: &Loaded) -> Result<Vec<Complex64>, EstimatorError> {
             l.scene
                 .pairs()
                 .iter()
-                .map(|&p| match speckle::estimators::speckle_mean(&l.scene, p) {
-                    Err(EstimatorError::InvalidInput { field, .. }) if field == "medium" => {
+                .map(|&p| match l.scene.mean(p) {
+                    Err(SceneError::InvalidInput { field, .. }) if field == "medium" => {
                         Ok(Complex64::new(f64::NAN, f64::NAN))
                     }
                     other => other,
@@ -509,7 +510,7 @@ pub fn single(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
 /// `speckle mean`.
 pub fn mean(l: &Loaded) -> anyhow::Result<Vec<PathBuf>> {
     let start = Instant::now();
-    let mean = means_or_nan(l).map_err(estimator_error)?;
+    let mean = means_or_nan(l).map_err(|e| estimator_error(e.into()))?;
     let wall = start.elapsed().as_secs_f64();
     let n = &l.name;
     let j = l.pairs();
@@ -652,6 +653,7 @@ pub fn fields(l: &Loaded, run: RunOptions) -> anyhow::Result<Vec<PathBuf>> {
         seed: r.seed,
         coherence: l.coherence,
         add_mean: r.add_mean,
+        sampling: l.sampling,
     };
     let total = (rr as u64).saturating_mul(r.paths_per_realization);
     let (est, wall) = run.timed(l, total, "paths", |p| render_fields(&l.scene, &opts, p))?;

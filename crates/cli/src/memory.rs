@@ -605,12 +605,12 @@ impl Study {
             .iter()
             .map(|&d| Source::plane_wave(d))
             .collect::<Result<_, _>>()
-            .map_err(estimator_error)?;
+            .map_err(|e| estimator_error(e.into()))?;
         let sensors = dirs
             .iter()
             .map(|&d| Sensor::far_field(d))
             .collect::<Result<_, _>>()
-            .map_err(estimator_error)?;
+            .map_err(|e| estimator_error(e.into()))?;
         let pairs = (0..dirs.len())
             .map(|n| Pair {
                 source: n,
@@ -625,9 +625,8 @@ impl Study {
             sources,
             sensors,
             pairs,
-            self.tracer(),
         )
-        .map_err(estimator_error)
+        .map_err(|e| estimator_error(e.into()))
     }
 }
 
@@ -824,6 +823,7 @@ fn render_band(s: &Study, band: &Band, w: usize, progress: &CliProgress) -> anyh
             paths,
             seed: group_seed(r.seed, w as u64 * g + i),
             coherence: s.coherence(),
+            sampling: s.tracer(),
         };
         let est = render_covariance(&scene, &opts, progress).map_err(estimator_error)?;
         let t = &est.total.value;

@@ -8,16 +8,17 @@ use crate::spec::{
     ParticleSpec, PhaseSpec, SceneFile, SensorSpec, SourceSpec,
 };
 use serde_json::{Value, json};
-use speckle::estimators::{Coherence, EstimatorError, Pair, Scene, Sensor, Source};
+use speckle::estimators::{Coherence, Pair, Scene, Sensor, Source};
 use speckle::medium::{
     Aabb, Concentration, DVec3, Dimension, HomogeneousBox, Material, Medium, ParticleMix,
     ParticleType, TypeMix, VoxelGrid,
 };
-use speckle::paths::{FirstDirection, FirstVertex, TracerConfig};
+use speckle::paths::{FirstDirection, FirstVertex, Tracer, TracerConfig};
 use speckle::phase::{
     Complex64, FlatTabulatedAmplitude, HgMixture, MieSphere, Phase, PhaseFunction,
     TabulatedAmplitude,
 };
+use speckle::scene::SceneError;
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -85,6 +86,8 @@ pub struct Loaded {
     pub all_pairs: bool,
     /// The covariance/field coherence setting.
     pub coherence: Coherence,
+    /// The path sampling strategies of the Monte Carlo renders.
+    pub sampling: TracerConfig,
     /// Particle (Mie) and grid facts for the sidecars (`null` for a plain box).
     pub medium_info: Value,
 }
@@ -1351,17 +1354,18 @@ fn build(
             format!("must be in 1..=64 (got {s})"),
         ));
     }
-    let tracer = TracerConfig {
+    let sampling = TracerConfig {
         first_vertex,
         first_direction,
         max_vertices,
     };
-    let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs, tracer)
-        .map_err(|e| match e {
-            EstimatorError::InvalidInput { field, reason } => bad(field, reason),
-            EstimatorError::Path(p) => bad("render", p),
-            other => bad("scene", other),
-        })?;
+    let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs).map_err(
+        |e| match e {
+            SceneError::InvalidInput { field, reason } => bad(field, reason),
+        },
+    )?;
+    // Check the sampling configuration against the medium now rather than at render time.
+    Tracer::with_types(scene.medium(), scene.phases(), sampling).map_err(|p| bad("render", p))?;
     Ok(Loaded {
         file,
         name,
@@ -1372,6 +1376,7 @@ fn build(
         grid,
         all_pairs,
         coherence,
+        sampling,
         medium_info,
     })
 }
@@ -1478,7 +1483,6 @@ impl Loaded {
             s.sources().to_vec(),
             s.sensors().to_vec(),
             s.pairs().to_vec(),
-            s.tracer_config(),
         )
         .map_err(|e| bad("scene", e))
     }
@@ -1506,7 +1510,7 @@ impl Loaded {
 
     /// The tracer configuration, as JSON.
     pub fn tracer_json(&self) -> Value {
-        let t = self.scene.tracer_config();
+        let t = self.sampling;
         let first_vertex = match t.first_vertex {
             FirstVertex::Uniform => json!({"type": "uniform"}),
             FirstVertex::ExponentialDepth { direction } => {

@@ -13,7 +13,6 @@ use speckle_estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-use speckle_paths::TracerConfig;
 use speckle_phase::Phase;
 
 fn main() {
@@ -43,13 +42,13 @@ fn main() {
         src,
         sen,
         Pair::all(n_src, n_sens),
-        TracerConfig::default(),
     )
     .unwrap();
     let opts = CovarianceOptions {
         paths,
         seed: 1,
         coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)

@@ -11,10 +11,10 @@
 //! When the pairs are the full grid of [`crate::Pair::all`] a tile is a block of sources times a
 //! block of sensors, and the pair loops are contiguous structure-of-arrays loops.
 
-use crate::endpoints::{Endpoints, Legs};
 use crate::{Coherence, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
+use speckle_endpoints::{Endpoints, Legs};
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
 use std::ops::Range;
@@ -320,7 +320,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             (PairMap::Grid { sensors: nv }, Some(t)) => {
                 // The hot case of far-field images: contiguous rows, vectorised.
                 let nv = *nv;
-                let (or, oi) = (&out1.re[..nv], &out1.im[..nv]);
+                let (or, oi) = (&out1.re()[..nv], &out1.im()[..nv]);
                 for s in 0..in1.len() {
                     let al = z * in1.amp(s);
                     let row = s * nv..(s + 1) * nv;

@@ -2,13 +2,15 @@
 //! of Eq. 41.
 
 use crate::connect::{Connector, coherence_factor};
-use crate::driver::{Batches, CANCEL_CHECK, Progress, TARGET_BATCHES, run_ordered};
-use crate::moments::{BatchSum, Buffers, Layout, Moments};
 use crate::{Coherence, EstimatorError, MatrixEstimate, Scene};
 use glam::DVec3;
 use speckle_medium::Medium;
-use speckle_paths::{PathRng, Vertex, VertexSink};
+use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
+use speckle_stats::{
+    BatchSum, Batches, Buffers, CANCEL_CHECK, Layout, Moments, Progress, TARGET_BATCHES,
+    run_ordered,
+};
 
 /// Options of a covariance render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -19,6 +21,20 @@ pub struct CovarianceOptions {
     pub seed: u64,
     /// Forward and reversed paths, or forward only.
     pub coherence: Coherence,
+    /// How sub-paths are sampled (first-vertex and first-direction strategies).
+    pub sampling: TracerConfig,
+}
+
+impl Default for CovarianceOptions {
+    /// 100 000 paths, seed 1, forward and reversed paths, uniform first vertex and direction.
+    fn default() -> Self {
+        Self {
+            paths: 100_000,
+            seed: 1,
+            coherence: Coherence::default(),
+            sampling: TracerConfig::default(),
+        }
+    }
 }
 
 /// A covariance estimate `C[(i1, v1), (i2, v2)]` over all pairs of a scene, split by path length.
@@ -110,7 +126,6 @@ pub fn render_covariance<M: Medium, P: PhaseFunction>(
 /// ```
 /// use speckle_estimators::*;
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-/// use speckle_paths::TracerConfig;
 /// use speckle_phase::Phase;
 /// let m = HomogeneousBox::new(Aabb::centered(DVec3::ZERO, DVec3::splat(4.0)).unwrap(), 0.25, 0.0)
 ///     .unwrap();
@@ -118,9 +133,9 @@ pub fn render_covariance<M: Medium, P: PhaseFunction>(
 ///     .map(|d| Sensor::far_field(DVec3::new((d as f64).to_radians().sin(), 0.0, -1.0)).unwrap())
 ///     .collect();
 /// let src = vec![Source::plane_wave(DVec3::Z).unwrap()];
-/// let s = Scene::new(m, Phase::Isotropic, 1.0, src, sensors, Pair::all(1, 90), TracerConfig::default())
+/// let s = Scene::new(m, Phase::Isotropic, 1.0, src, sensors, Pair::all(1, 90))
 ///     .unwrap();
-/// let opts = CovarianceOptions { paths: 2000, seed: 1, coherence: Coherence::ForwardAndReversed };
+/// let opts = CovarianceOptions { paths: 2000, seed: 1, ..Default::default() };
 /// let i = render_intensity(&s, &opts, &NoProgress).unwrap();
 /// assert_eq!((i.total.value.rows(), i.total.value.cols()), (90, 1));
 /// ```
@@ -139,7 +154,7 @@ fn render<M: Medium, P: PhaseFunction>(
     layout: Layout,
 ) -> Result<CovarianceEstimate, EstimatorError> {
     check_paths(options.paths)?;
-    let tracer = scene.tracer()?;
+    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let j = scene.len();
     let len = layout.len(j);
     let batches = Batches::about(options.paths, TARGET_BATCHES);
@@ -199,7 +214,7 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
     progress: &dyn Progress,
 ) -> Result<MatrixEstimate, EstimatorError> {
     check_paths(options.paths)?;
-    let tracer = scene.tracer()?;
+    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let j = scene.len();
     let batches = Batches::about(options.paths, TARGET_BATCHES);
     let buffers = Buffers::default();
@@ -235,7 +250,6 @@ mod tests {
     use crate::{NoProgress, Pair, Sensor, Source};
     use num_complex::Complex64;
     use speckle_medium::{Aabb, HomogeneousBox};
-    use speckle_paths::TracerConfig;
     use speckle_phase::Phase;
 
     /// A slab with 2 plane waves and 4 far-field sensors (`J = 8`).
@@ -250,16 +264,7 @@ mod tests {
             .map(|n| Sensor::far_field(tilt(n)).unwrap())
             .collect();
         let phase = Phase::hg(0.4).unwrap();
-        Scene::new(
-            m,
-            phase,
-            1.0,
-            src,
-            sen,
-            Pair::all(2, 4),
-            TracerConfig::default(),
-        )
-        .unwrap()
+        Scene::new(m, phase, 1.0, src, sen, Pair::all(2, 4)).unwrap()
     }
 
     /// The diagonal of the full render, summed beside its rank-K blocks, is bitwise the
@@ -273,6 +278,7 @@ mod tests {
                 paths: 3001,
                 seed: 5,
                 coherence,
+                ..Default::default()
             };
             let c = render_covariance(&s, &opts, &NoProgress).unwrap();
             let i = render_intensity(&s, &opts, &NoProgress).unwrap();

@@ -1,13 +1,13 @@
 //! Speckle field sampling (Alg. 2, Sec. 5.2).
 
 use crate::connect::{Connector, Cvec, Tile, coherence_factor, tiles};
-use crate::driver::{Batches, CANCEL_CHECK, Progress, run_ordered};
-use crate::{CMatrix, Coherence, EstimatorError, Scene, speckle_means};
+use crate::{CMatrix, Coherence, EstimatorError, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::Medium;
-use speckle_paths::{PathRng, Vertex, VertexSink};
+use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
+use speckle_stats::{Batches, CANCEL_CHECK, Progress, run_ordered};
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -24,6 +24,23 @@ pub struct FieldOptions {
     pub coherence: Coherence,
     /// Add the speckle mean (Eq. 20 and its far-field form) to every realization.
     pub add_mean: bool,
+    /// How sub-paths are sampled (first-vertex and first-direction strategies).
+    pub sampling: TracerConfig,
+}
+
+impl Default for FieldOptions {
+    /// 8 realizations of 20 000 paths, seed 1, forward and reversed paths, the mean added,
+    /// uniform first vertex and direction.
+    fn default() -> Self {
+        Self {
+            realizations: 8,
+            paths_per_realization: 20_000,
+            seed: 1,
+            coherence: Coherence::default(),
+            add_mean: true,
+            sampling: TracerConfig::default(),
+        }
+    }
 }
 
 /// `R` realizations of the `J`-vector of fields of a scene.
@@ -136,10 +153,10 @@ fn render<M: Medium, P: PhaseFunction>(
             reason: "at least one path per realization is needed".into(),
         });
     }
-    let tracer = scene.tracer()?;
+    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let j = scene.len();
     let mean = if options.add_mean {
-        speckle_means(scene)?
+        scene.means()?
     } else {
         vec![Complex64::new(0.0, 0.0); j]
     };
@@ -227,7 +244,6 @@ mod tests {
     use super::*;
     use crate::{NoProgress, Pair, Sensor, Source};
     use speckle_medium::{Aabb, HomogeneousBox};
-    use speckle_paths::TracerConfig;
     use speckle_phase::Phase;
 
     /// Two particle types (HG lobes), plane-wave and point sources, far-field and point
@@ -262,7 +278,6 @@ mod tests {
             sources,
             sensors,
             pairs.unwrap_or_else(|| Pair::all(3, 7)),
-            TracerConfig::default(),
         )
         .unwrap()
     }
@@ -284,6 +299,7 @@ mod tests {
                 seed: 4,
                 coherence,
                 add_mean: false,
+                ..Default::default()
             };
             let grid = mixed_scene(None);
             let one = render(&grid, &opts, &NoProgress, 1 << 15, Some(70)).unwrap();
@@ -341,7 +357,6 @@ mod tests {
             sources,
             sensors,
             Pair::all(8, n * n),
-            TracerConfig::default(),
         )
         .unwrap();
         let before = peak_rss();
@@ -351,6 +366,7 @@ mod tests {
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
             add_mean: false,
+            ..Default::default()
         };
         let t = std::time::Instant::now();
         let f = render_fields(&scene, &opts, &NoProgress).unwrap();

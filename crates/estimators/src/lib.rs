@@ -7,7 +7,7 @@
 //! with `1/sqrt(r)` in place of `1/r`, amplitudes normalised on the circle and uniform first
 //! directions of density `1/(2 pi)`.
 //!
-//! - [`speckle_mean`]: the mean field (Eq. 20 and its far-field form), in closed form.
+//! - the mean field (Eq. 20 and its far-field form) is in closed form: [`Scene::mean`].
 //! - [`render_covariance`]: the covariance of all pairs of a list of (source, sensor) pairs
 //!   (Alg. 1), with forward and reversed paths (coherent backscattering) or forward paths only,
 //!   split into single- and multiple-scattering parts, each with standard errors.
@@ -25,14 +25,13 @@
 //! ```
 //! use speckle_estimators::*;
 //! use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-//! use speckle_paths::TracerConfig;
 //! use speckle_phase::Phase;
 //! let slab = Aabb::centered(DVec3::ZERO, DVec3::new(20.0, 20.0, 5.0)).unwrap();
 //! let medium = HomogeneousBox::from_mean_free_path(slab, 5.0, 1.0).unwrap();
 //! let sensors = (0..4).map(|n| Sensor::far_field(DVec3::new(0.05 * n as f64, 0.0, 1.0)).unwrap()).collect();
 //! let scene = Scene::new(medium, Phase::hg(0.5).unwrap(), 1.0,
-//!     vec![Source::plane_wave(DVec3::Z).unwrap()], sensors, Pair::all(1, 4), TracerConfig::default()).unwrap();
-//! let opts = CovarianceOptions { paths: 2000, seed: 1, coherence: Coherence::ForwardAndReversed };
+//!     vec![Source::plane_wave(DVec3::Z).unwrap()], sensors, Pair::all(1, 4)).unwrap();
+//! let opts = CovarianceOptions { paths: 2000, seed: 1, ..Default::default() };
 //! let c = render_covariance(&scene, &opts, &NoProgress).unwrap();
 //! assert_eq!(c.total.value.rows(), 4);
 //! assert!(c.total.value.get(0, 0).re > 0.0);
@@ -41,31 +40,29 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-mod block;
 mod connect;
 mod covariance;
-mod driver;
-mod empirical;
-mod endpoints;
-pub mod fastmath;
 mod fields;
-mod matrix;
-mod mean;
-mod moments;
-mod scene;
 
-pub use block::{BLOCK_COLUMNS, BlockAccumulator, rank1_upper};
 pub use covariance::{
     CovarianceEstimate, CovarianceOptions, render_covariance, render_intensity,
     render_single_scattering,
 };
-pub use driver::{NoProgress, Progress};
-pub use empirical::{EmpiricalMoments, empirical_moments};
-pub use endpoints::{Leg, Pair, Sensor, Source};
 pub use fields::{FieldEstimate, FieldOptions, render_fields};
-pub use matrix::{CMatrix, MatrixEstimate};
-pub use mean::{speckle_mean, speckle_means};
-pub use scene::{Coherence, Scene};
+// The types every caller of the estimators handles, defined in the crates below.
+pub use speckle_endpoints::{Pair, Sensor, Source};
+pub use speckle_scene::Scene;
+pub use speckle_stats::{CMatrix, MatrixEstimate, NoProgress, Progress};
+
+/// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Coherence {
+    /// Forward and reversed paths: coherent backscattering included (Eq. 31). The default.
+    #[default]
+    ForwardAndReversed,
+    /// Forward paths only (the correlation transfer equation; no coherent backscattering).
+    ForwardOnly,
+}
 
 /// Errors of the estimators.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -81,7 +78,26 @@ pub enum EstimatorError {
     /// The path sampler rejected its configuration.
     #[error(transparent)]
     Path(#[from] speckle_paths::PathError),
+
     /// The render was cancelled through [`Progress::cancelled`].
     #[error("the render was cancelled")]
     Cancelled,
 }
+
+/// Field errors of the layers below keep their field name.
+macro_rules! invalid_input_from {
+    ($($t:ident :: $e:ident),*) => {$(
+        impl From<$t::$e> for EstimatorError {
+            fn from(e: $t::$e) -> Self {
+                let $t::$e::InvalidInput { field, reason } = e;
+                Self::InvalidInput { field, reason }
+            }
+        }
+    )*};
+}
+
+invalid_input_from!(
+    speckle_scene::SceneError,
+    speckle_endpoints::EndpointError,
+    speckle_stats::StatsError
+);

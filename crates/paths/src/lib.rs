@@ -23,11 +23,11 @@
 #![deny(missing_docs)]
 
 mod first;
-mod rng;
+
 mod tracer;
 
 pub use first::{FirstDirection, FirstVertex};
-pub use rng::PathRng;
+pub use speckle_stats::PathRng;
 pub use tracer::{Tracer, TracerConfig, Vertex, VertexSink};
 
 /// Errors raised when a tracer is configured with something it cannot sample.

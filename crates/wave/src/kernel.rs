@@ -27,7 +27,7 @@ pub struct Kernel {
 
 impl Kernel {
     /// The kernel of `dimension` at wavenumber `k` (finite and positive; not checked here, a
-    /// [`speckle_estimators::Scene`] guarantees it).
+    /// [`speckle_scene::Scene`] guarantees it).
     pub fn new(dimension: Dimension, k: f64) -> Self {
         Self { dimension, k }
     }

@@ -50,18 +50,18 @@
 //! scatterers is Poisson with mean `n |V|` (volume in 3D, area in flatland), positions uniform
 //! in the box ([`sample_scatterers`]).
 //!
-//! **Sources** (`speckle_estimators::Source`): a plane wave `e^{ik d.x}`; a point source
+//! **Sources** (`speckle_endpoints::Source`): a plane wave `e^{ik d.x}`; a point source
 //! `e^{ikr} / r` in 3D and `sqrt(pi k / 2) e^{i pi/4} H0^(1)(kr)` in flatland, which tends to
 //! `e^{ikr} / sqrt(r)` (the Monte Carlo's flatland point source).
 //!
-//! **Sensors** (`speckle_estimators::Sensor`):
+//! **Sensors** (`speckle_endpoints::Sensor`):
 //! - far field `v`: the amplitude `A(v)` of `u(R v) = A e^{ikR} / R` (3D) or
 //!   `A e^{ikR} / sqrt(R)` (flatland): `A = sum_n f e^{-ik v.o_n} psi_n`, plus `e^{-ik v.p}`
 //!   for a point source at `p` (its own far field; a plane wave has none in a direction `v`);
 //! - point `q`: the total field `u_inc(q) + sum_n tau G(q - o_n) psi_n`.
 //!
 //! These are what the Monte Carlo mean and covariance estimate (the mean of
-//! `speckle_estimators::speckle_mean` includes the attenuated incident field).
+//! `speckle_scene::Scene::mean` includes the attenuated incident field).
 //!
 //! # Cost
 //! Assembly `O(N^2)` Green's functions, LU `(8/3) N^3` real flops, solves `O(N^2 S)` for `S`
@@ -69,9 +69,10 @@
 //! limited to [`MAX_EXPECTED_SCATTERERS`].
 //!
 //! ```
-//! use speckle_estimators::{NoProgress, Pair, Scene, Sensor, Source};
+//! use speckle_endpoints::{Pair, Sensor, Source};
+//! use speckle_scene::Scene;
+//! use speckle_stats::NoProgress;
 //! use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-//! use speckle_paths::TracerConfig;
 //! use speckle_phase::Phase;
 //! use speckle_wave::{WaveOptions, render_wave};
 //! // 4 x 4 x 2 wavelengths, mean free path 4: about 40 scatterers per configuration.
@@ -79,7 +80,7 @@
 //! let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
 //! let sensors = vec![Sensor::far_field(DVec3::new(0.3, 0.0, 1.0)).unwrap()];
 //! let scene = Scene::new(m, Phase::Isotropic, 1.0, vec![Source::plane_wave(DVec3::Z).unwrap()],
-//!     sensors, Pair::all(1, 1), TracerConfig::default()).unwrap();
+//!     sensors, Pair::all(1, 1)).unwrap();
 //! let w = render_wave(&scene, &WaveOptions { configurations: 20, seed: 7 }, &NoProgress).unwrap();
 //! assert!((w.mean_scatterers - w.expected_scatterers).abs() < 0.5 * w.expected_scatterers);
 //! let (c, se) = w.covariance.get(0, 0);
@@ -101,8 +102,6 @@ pub use solve::{
     number_density, sample_scatterers, solve,
 };
 
-use speckle_estimators::EstimatorError;
-
 /// Errors of the wave solver.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum WaveError {
@@ -114,9 +113,7 @@ pub enum WaveError {
         /// What is wrong with it.
         reason: String,
     },
-    /// An error of the shared estimator machinery.
-    #[error(transparent)]
-    Estimator(#[from] EstimatorError),
+
     /// The render was cancelled through `Progress::cancelled`.
     #[error("the wave render was cancelled")]
     Cancelled,
@@ -126,8 +123,7 @@ impl WaveError {
     /// The name of the offending input, if the error is about one.
     pub fn field(&self) -> Option<&str> {
         match self {
-            Self::InvalidInput { field, .. }
-            | Self::Estimator(EstimatorError::InvalidInput { field, .. }) => Some(field),
+            Self::InvalidInput { field, .. } => Some(field),
             _ => None,
         }
     }
@@ -135,3 +131,10 @@ impl WaveError {
 
 #[cfg(test)]
 mod tests;
+
+impl From<speckle_stats::StatsError> for WaveError {
+    fn from(e: speckle_stats::StatsError) -> Self {
+        let speckle_stats::StatsError::InvalidInput { field, reason } = e;
+        Self::InvalidInput { field, reason }
+    }
+}

@@ -4,8 +4,8 @@ use crate::solve::{check_scene, expected_scatterers, sample_scatterers, solve_ch
 use crate::{WaveError, WaveScene};
 use num_complex::Complex64;
 use rayon::prelude::*;
-use speckle_estimators::{CMatrix, MatrixEstimate, Progress, empirical_moments};
-use speckle_paths::PathRng;
+use speckle_stats::PathRng;
+use speckle_stats::{CMatrix, MatrixEstimate, Progress, empirical_moments};
 
 /// Options of [`render_wave`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,7 +20,7 @@ pub struct WaveOptions {
 #[derive(Debug, Clone, PartialEq)]
 pub struct WaveEstimate {
     /// Fields, one configuration per row (`R x J`, pairs in scene order), as in
-    /// [`speckle_estimators::FieldEstimate::fields`].
+    /// `speckle_estimators::FieldEstimate::fields`.
     pub fields: CMatrix,
     /// Sample mean of the fields over configurations (estimates the speckle mean).
     pub mean: Vec<Complex64>,
@@ -59,10 +59,11 @@ const MEMORY_BUDGET: f64 = 4.0 * (1u64 << 30) as f64;
 /// `phase`, `medium` (too many scatterers), or [`WaveError::Cancelled`].
 ///
 /// ```
-/// use speckle_estimators::{NoProgress, Pair, Scene, Sensor, Source};
+/// use speckle_endpoints::{Pair, Sensor, Source};
+/// use speckle_scene::Scene;
+/// use speckle_stats::NoProgress;
 /// use glam::DVec2;
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-/// use speckle_paths::TracerConfig;
 /// use speckle_phase::Phase;
 /// use speckle_wave::{WaveOptions, render_wave};
 /// // A flatland slab, 10 x 4 wavelengths, mean free path 4: about 16 scatterers.
@@ -70,8 +71,7 @@ const MEMORY_BUDGET: f64 = 4.0 * (1u64 << 30) as f64;
 /// let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
 /// let scene = Scene::new(m, Phase::FlatIsotropic, 1.0,
 ///     vec![Source::plane_wave(DVec3::Y).unwrap()],
-///     vec![Sensor::Point { position: DVec3::new(0.0, 3.0, 0.0) }], Pair::all(1, 1),
-///     TracerConfig::default()).unwrap();
+///     vec![Sensor::Point { position: DVec3::new(0.0, 3.0, 0.0) }], Pair::all(1, 1)).unwrap();
 /// let w = render_wave(&scene, &WaveOptions { configurations: 50, seed: 1 }, &NoProgress).unwrap();
 /// assert_eq!(w.fields.rows(), 50);
 /// assert!(w.covariance.value.get(0, 0).re > 0.0);

@@ -6,10 +6,11 @@ use faer::linalg::lu::partial_pivoting::{factor, solve as lu_solve};
 use faer::{Mat, Par};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_estimators::{Scene, Sensor, Source};
+use speckle_endpoints::{Sensor, Source};
 use speckle_medium::{Dimension, HomogeneousBox, Medium};
-use speckle_paths::PathRng;
 use speckle_phase::Phase;
+use speckle_scene::Scene;
+use speckle_stats::PathRng;
 
 /// The scenes the wave solver accepts: a homogeneous lossless box of isotropic scatterers.
 pub type WaveScene = Scene<HomogeneousBox, Phase>;
@@ -77,16 +78,16 @@ pub fn number_density(scene: &WaveScene) -> Result<f64, WaveError> {
 /// flatland); an error naming `medium` when it exceeds [`MAX_EXPECTED_SCATTERERS`].
 ///
 /// ```
-/// use speckle_estimators::{Pair, Scene, Sensor, Source};
+/// use speckle_endpoints::{Pair, Sensor, Source};
+/// use speckle_scene::Scene;
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-/// use speckle_paths::TracerConfig;
 /// use speckle_phase::Phase;
 /// // 10 x 10 x 5 wavelengths, mean free path 10: n = sigma_s / (4 pi / k^2) = 0.1 pi per
 /// // cubic wavelength.
 /// let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 5.0)).unwrap();
 /// let m = HomogeneousBox::from_mean_free_path(b, 10.0, 1.0).unwrap();
 /// let scene = Scene::new(m, Phase::Isotropic, 1.0, vec![Source::plane_wave(DVec3::Z).unwrap()],
-///     vec![Sensor::far_field(DVec3::Z).unwrap()], Pair::all(1, 1), TracerConfig::default())
+///     vec![Sensor::far_field(DVec3::Z).unwrap()], Pair::all(1, 1))
 ///     .unwrap();
 /// let n = speckle_wave::expected_scatterers(&scene).unwrap();
 /// assert!((n - 50.0 * std::f64::consts::PI).abs() < 1e-9);
@@ -165,15 +166,15 @@ fn check_positions(scene: &WaveScene, scatterers: &[DVec3]) -> Result<(), WaveEr
 /// (`pairs[j]`).
 ///
 /// ```
-/// use speckle_estimators::{Pair, Scene, Sensor, Source};
+/// use speckle_endpoints::{Pair, Sensor, Source};
+/// use speckle_scene::Scene;
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-/// use speckle_paths::TracerConfig;
 /// use speckle_phase::Phase;
 /// let b = Aabb::centered(DVec3::ZERO, DVec3::splat(2.0)).unwrap();
 /// let m = HomogeneousBox::from_mean_free_path(b, 10.0, 1.0).unwrap();
 /// let v = DVec3::new(0.0, 0.6, 0.8);
 /// let scene = Scene::new(m, Phase::Isotropic, 1.0, vec![Source::plane_wave(DVec3::Z).unwrap()],
-///     vec![Sensor::far_field(v).unwrap()], Pair::all(1, 1), TracerConfig::default()).unwrap();
+///     vec![Sensor::far_field(v).unwrap()], Pair::all(1, 1)).unwrap();
 /// // One scatterer at o: A(v) = (i / k) e^{ik (i - v).o}.
 /// let o = DVec3::new(0.1, -0.3, 0.2);
 /// let u = speckle_wave::solve(&scene, &[o]).unwrap();

@@ -5,10 +5,12 @@
 use super::*;
 use glam::{DVec2, DVec3};
 use num_complex::Complex64;
-use speckle_estimators::{NoProgress, Pair, Progress, Scene, Sensor, Source};
+use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::{Aabb, Dimension, HomogeneousBox};
-use speckle_paths::{PathRng, TracerConfig};
 use speckle_phase::Phase;
+use speckle_scene::Scene;
+use speckle_stats::PathRng;
+use speckle_stats::{NoProgress, Progress};
 use std::f64::consts::{FRAC_PI_4, PI, TAU};
 
 fn box3(size: DVec3, mean_free_path: f64) -> HomogeneousBox {
@@ -24,16 +26,7 @@ fn box2(size: DVec2, mean_free_path: f64) -> HomogeneousBox {
 fn scene(medium: HomogeneousBox, sources: Vec<Source>, sensors: Vec<Sensor>) -> WaveScene {
     let phase = Phase::isotropic(speckle_medium::Medium::dimension(&medium));
     let (s, v) = (sources.len(), sensors.len());
-    Scene::new(
-        medium,
-        phase,
-        1.0,
-        sources,
-        sensors,
-        Pair::all(s, v),
-        TracerConfig::default(),
-    )
-    .unwrap()
+    Scene::new(medium, phase, 1.0, sources, sensors, Pair::all(s, v)).unwrap()
 }
 
 /// `count` positions uniform in the box of `scene` (a fixed stream, independent of the Poisson
@@ -390,18 +383,8 @@ fn errors_name_the_offending_input() {
     let b = Aabb::centered(DVec3::ZERO, DVec3::ONE).unwrap();
     let src = || vec![Source::plane_wave(DVec3::Z).unwrap()];
     let sen = || vec![Sensor::far_field(DVec3::Z).unwrap()];
-    let mk = |m: HomogeneousBox, p: Phase| {
-        Scene::new(
-            m,
-            p,
-            1.0,
-            src(),
-            sen(),
-            Pair::all(1, 1),
-            TracerConfig::default(),
-        )
-        .unwrap()
-    };
+    let mk =
+        |m: HomogeneousBox, p: Phase| Scene::new(m, p, 1.0, src(), sen(), Pair::all(1, 1)).unwrap();
     let absorbing = mk(HomogeneousBox::new(b, 0.5, 0.1).unwrap(), Phase::Isotropic);
     let opts = WaveOptions {
         configurations: 4,
@@ -464,7 +447,6 @@ fn errors_name_the_offending_input() {
         vec![Source::Point { position: p }],
         vec![Sensor::Point { position: p }],
         Pair::all(1, 1),
-        TracerConfig::default(),
     )
     .unwrap();
     assert_eq!(field_of(solve(&same, &[o]).unwrap_err()), "pairs[0]");

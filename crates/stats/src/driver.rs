@@ -11,7 +11,7 @@ use rayon::prelude::*;
 pub trait Progress: Sync {
     /// `paths` more paths are done.
     fn advance(&self, _paths: u64) {}
-    /// Whether the render should stop; it then returns [`crate::EstimatorError::Cancelled`].
+    /// Whether the render should stop; the render then stops and reports a cancellation.
     fn cancelled(&self) -> bool {
         false
     }
@@ -25,18 +25,20 @@ impl Progress for NoProgress {}
 
 /// Number of batches a render with standard errors is cut into (the batch-means estimator of
 /// the standard error has `BATCHES - 1` degrees of freedom).
-pub(crate) const TARGET_BATCHES: u64 = 128;
+pub const TARGET_BATCHES: u64 = 128;
 
 /// Paths between two checks for cancellation inside a batch.
-pub(crate) const CANCEL_CHECK: u64 = 256;
+pub const CANCEL_CHECK: u64 = 256;
 
 /// Memory allowed for batch results held at once.
 const MEMORY_BUDGET: usize = 1 << 30;
 
 /// The fixed split of `total` paths into batches of `size` (the last may be shorter).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Batches {
+pub struct Batches {
+    /// Total number of paths.
     pub total: u64,
+    /// Paths per batch (the last batch may be shorter).
     pub size: u64,
 }
 
@@ -57,10 +59,12 @@ impl Batches {
         }
     }
 
+    /// Number of batches.
     pub fn count(&self) -> usize {
         self.total.div_ceil(self.size) as usize
     }
 
+    /// The paths of batch `b`.
     pub fn range(&self, b: usize) -> std::ops::Range<u64> {
         let start = b as u64 * self.size;
         start..(start + self.size).min(self.total)
@@ -74,7 +78,7 @@ impl Batches {
 /// computation of the next (`rayon::join`), so no core idles while results are merged. At most
 /// two chunks of results are held at once, and a chunk is sized so that both fit the memory
 /// budget. The order of the merge, and so the output, does not depend on the number of threads.
-pub(crate) fn run_ordered<T, W, G>(count: usize, bytes_per_item: usize, work: W, merge: G) -> bool
+pub fn run_ordered<T, W, G>(count: usize, bytes_per_item: usize, work: W, merge: G) -> bool
 where
     T: Send,
     W: Fn(usize) -> Option<T> + Sync,

@@ -2,7 +2,7 @@
 //! at a time ([`Source::leg`], [`Sensor::leg`]), or to a whole list at once with the vectorised
 //! kernels of [`Endpoints`].
 
-use crate::{EstimatorError, fastmath};
+use crate::{EndpointError, fastmath};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::{Dimension, Medium, field_attenuation};
@@ -50,9 +50,9 @@ pub(crate) fn spreading(dimension: Dimension, r: f64) -> f64 {
     }
 }
 
-fn in_plane(field: &'static str, v: DVec3, dimension: Dimension) -> Result<(), EstimatorError> {
+fn in_plane(field: &'static str, v: DVec3, dimension: Dimension) -> Result<(), EndpointError> {
     if dimension == Dimension::Two && v.z != 0.0 {
-        return Err(EstimatorError::InvalidInput {
+        return Err(EndpointError::InvalidInput {
             field: field.into(),
             reason: format!("{v} must have z = 0 in a flatland scene"),
         });
@@ -60,28 +60,28 @@ fn in_plane(field: &'static str, v: DVec3, dimension: Dimension) -> Result<(), E
     Ok(())
 }
 
-fn unit(field: &'static str, v: DVec3) -> Result<DVec3, EstimatorError> {
+fn unit(field: &'static str, v: DVec3) -> Result<DVec3, EndpointError> {
     let len = v.length();
     if v.is_finite() && len > 0.0 && len.is_finite() {
         Ok(v / len)
     } else {
-        Err(EstimatorError::InvalidInput {
+        Err(EndpointError::InvalidInput {
             field: field.into(),
             reason: format!("direction {v} must be finite and non-zero"),
         })
     }
 }
 
-fn point<M: Medium>(field: &'static str, p: DVec3, m: &M) -> Result<DVec3, EstimatorError> {
+fn point<M: Medium>(field: &'static str, p: DVec3, m: &M) -> Result<DVec3, EndpointError> {
     in_plane(field, p, m.dimension())?;
     if !p.is_finite() {
-        return Err(EstimatorError::InvalidInput {
+        return Err(EndpointError::InvalidInput {
             field: field.into(),
             reason: format!("position {p} must be finite"),
         });
     }
     if m.bounds().contains(p) {
-        return Err(EstimatorError::InvalidInput {
+        return Err(EndpointError::InvalidInput {
             field: field.into(),
             reason: format!(
                 "position {p} lies in or on the medium; point endpoints must be outside it (next to \
@@ -94,7 +94,7 @@ fn point<M: Medium>(field: &'static str, p: DVec3, m: &M) -> Result<DVec3, Estim
 
 impl Source {
     /// A plane wave along `direction` (normalised; rejects zero or non-finite vectors).
-    pub fn plane_wave(direction: DVec3) -> Result<Self, EstimatorError> {
+    pub fn plane_wave(direction: DVec3) -> Result<Self, EndpointError> {
         Ok(Self::PlaneWave {
             direction: unit("source.direction", direction)?,
         })
@@ -102,7 +102,7 @@ impl Source {
 
     /// Checks the source against a medium: directions unit, points outside the medium, and both
     /// in the plane `z = 0` in flatland.
-    pub(crate) fn validated<M: Medium>(self, m: &M) -> Result<Self, EstimatorError> {
+    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
         Ok(match self {
             Self::PlaneWave { direction } => Self::PlaneWave {
                 direction: {
@@ -153,7 +153,7 @@ impl Source {
 
 impl Sensor {
     /// A far-field sensor along `direction` (normalised; rejects zero or non-finite vectors).
-    pub fn far_field(direction: DVec3) -> Result<Self, EstimatorError> {
+    pub fn far_field(direction: DVec3) -> Result<Self, EndpointError> {
         Ok(Self::FarField {
             direction: unit("sensor.direction", direction)?,
         })
@@ -161,7 +161,7 @@ impl Sensor {
 
     /// Checks the sensor against a medium: directions unit, points outside the medium, and both
     /// in the plane `z = 0` in flatland.
-    pub(crate) fn validated<M: Medium>(self, m: &M) -> Result<Self, EstimatorError> {
+    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
         Ok(match self {
             Self::FarField { direction } => Self::FarField {
                 direction: {
@@ -450,6 +450,18 @@ pub struct Legs {
 }
 
 impl Legs {
+    /// Real parts of the throughputs, one per leg.
+    #[inline]
+    pub fn re(&self) -> &[f64] {
+        &self.re
+    }
+
+    /// Imaginary parts of the throughputs, one per leg.
+    #[inline]
+    pub fn im(&self) -> &[f64] {
+        &self.im
+    }
+
     /// Number of legs.
     pub fn len(&self) -> usize {
         self.re.len()
@@ -719,7 +731,7 @@ mod tests {
     use speckle_medium::{Aabb, HomogeneousBox, VoxelGrid};
 
     fn uniform(seed: u64) -> impl FnMut() -> f64 {
-        let mut rng = speckle_paths::PathRng::new(seed, 0);
+        let mut rng = speckle_stats::PathRng::new(seed, 0);
         move || rng.next_f64()
     }
 

@@ -1,28 +1,47 @@
-//! A validated rendering problem: medium, phase function, wavelength, endpoints, pairs.
+//! The problem description of speckle renders: a validated [`Scene`] (medium, phase functions,
+//! wavelength, sources, sensors and the (source, sensor) pairs whose statistics are wanted).
+//!
+//! Design decision: a scene is the physics only. How it is rendered (Monte Carlo path counts,
+//! seeds, sampling strategies, wave-solver configurations) belongs to the options of each
+//! renderer, so the Monte Carlo estimators and the exact wave solver take the same scene.
 
-use crate::{EstimatorError, Pair, Sensor, Source};
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+use num_complex::Complex64;
+use rayon::prelude::*;
+use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::Medium;
-use speckle_paths::{PathError, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
 
-/// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Coherence {
-    /// Forward and reversed paths: coherent backscattering included (Eq. 31). The default.
-    #[default]
-    ForwardAndReversed,
-    /// Forward paths only (the correlation transfer equation; no coherent backscattering).
-    ForwardOnly,
+/// Errors of scene construction; each names the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneError {
+    /// An input is invalid; `field` names it.
+    #[error("{field}: {reason}")]
+    InvalidInput {
+        /// The offending field.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+impl From<speckle_endpoints::EndpointError> for SceneError {
+    fn from(e: speckle_endpoints::EndpointError) -> Self {
+        let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
+        Self::InvalidInput { field, reason }
+    }
 }
 
 /// A validated speckle rendering problem.
 ///
 /// ```
-/// use speckle_estimators::{Pair, Scene, Sensor, Source};
+/// use speckle_endpoints::{Pair, Sensor, Source};
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 /// use speckle_phase::Phase;
-/// use speckle_paths::TracerConfig;
+/// use speckle_scene::Scene;
 /// let slab = Aabb::centered(DVec3::ZERO, DVec3::new(40.0, 40.0, 10.0)).unwrap();
 /// let medium = HomogeneousBox::from_mean_free_path(slab, 10.0, 1.0).unwrap();
 /// let scene = Scene::new(
@@ -32,7 +51,6 @@ pub enum Coherence {
 ///     vec![Source::plane_wave(DVec3::Z).unwrap()],
 ///     vec![Sensor::far_field(DVec3::new(0.1, 0.0, 1.0)).unwrap()],
 ///     Pair::all(1, 1),
-///     TracerConfig::default(),
 /// )
 /// .unwrap();
 /// assert_eq!(scene.len(), 1);
@@ -45,11 +63,10 @@ pub struct Scene<M, P> {
     sources: Vec<Source>,
     sensors: Vec<Sensor>,
     pairs: Vec<Pair>,
-    tracer: TracerConfig,
 }
 
-fn invalid(field: impl Into<String>, reason: impl Into<String>) -> EstimatorError {
-    EstimatorError::InvalidInput {
+fn invalid(field: impl Into<String>, reason: impl Into<String>) -> SceneError {
+    SceneError::InvalidInput {
         field: field.into(),
         reason: reason.into(),
     }
@@ -64,23 +81,14 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         sources: Vec<Source>,
         sensors: Vec<Sensor>,
         pairs: Vec<Pair>,
-        tracer: TracerConfig,
-    ) -> Result<Self, EstimatorError> {
-        Self::with_types(
-            medium,
-            vec![phase],
-            wavelength,
-            sources,
-            sensors,
-            pairs,
-            tracer,
-        )
+    ) -> Result<Self, SceneError> {
+        Self::with_types(medium, vec![phase], wavelength, sources, sensors, pairs)
     }
 
     /// A scene in a medium of several particle types (Bar et al. 2019, App. A.1): `phases[iota]`
     /// is the amplitude function of type `iota`, one per [`Medium::particle_types`]. Every
     /// vertex draws its particle's type, so covariance and field estimates are those of Alg. 3
-    /// and Alg. 4 (see [`Tracer::with_types`]).
+    /// and Alg. 4 (see `speckle_paths::Tracer::with_types`).
     pub fn with_types(
         medium: M,
         phases: Vec<P>,
@@ -88,8 +96,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         sources: Vec<Source>,
         sensors: Vec<Sensor>,
         pairs: Vec<Pair>,
-        tracer: TracerConfig,
-    ) -> Result<Self, EstimatorError> {
+    ) -> Result<Self, SceneError> {
         if !(wavelength.is_finite() && wavelength > 0.0) {
             return Err(invalid(
                 "wavelength",
@@ -160,8 +167,6 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
                 ),
             ));
         }
-        // Check the tracer configuration now rather than at render time.
-        Tracer::with_types(&medium, &phases, tracer).map_err(EstimatorError::Path)?;
         Ok(Self {
             medium,
             phases,
@@ -169,7 +174,6 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             sources,
             sensors,
             pairs,
-            tracer,
         })
     }
 
@@ -223,19 +227,30 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         self.pairs.is_empty()
     }
 
-    /// The path sampling configuration.
-    pub fn tracer_config(&self) -> TracerConfig {
-        self.tracer
+    /// The speckle mean `E[u]` of `pair` (Eq. 20 and its far-field form; see
+    /// [`speckle_endpoints::mean_field`]).
+    pub fn mean(&self, pair: Pair) -> Result<Complex64, SceneError> {
+        Ok(speckle_endpoints::mean_field(
+            &self.medium,
+            &self.phases,
+            self.wavenumber(),
+            self.sources[pair.source],
+            self.sensors[pair.sensor],
+        )?)
     }
 
-    /// A tracer for this scene.
-    pub fn tracer(&self) -> Result<Tracer<'_, M, P>, PathError> {
-        Tracer::with_types(&self.medium, &self.phases, self.tracer)
+    /// The speckle means of all pairs, in pair order (pairs in parallel).
+    pub fn means(&self) -> Result<Vec<Complex64>, SceneError>
+    where
+        M: Sync,
+        P: Sync,
+    {
+        self.pairs.par_iter().map(|&p| self.mean(p)).collect()
     }
 
     /// The reciprocal scene: every pair `(i, v)` becomes `(-v, -i)` (sources and sensors swap,
     /// far-field directions negated). By reciprocity its covariance equals this scene's.
-    pub fn reciprocal(&self) -> Result<Self, EstimatorError>
+    pub fn reciprocal(&self) -> Result<Self, SceneError>
     where
         M: Clone,
         P: Clone,
@@ -253,7 +268,6 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
                     sensor: p.source,
                 })
                 .collect(),
-            self.tracer,
         )
     }
 }

@@ -35,13 +35,11 @@
 //! complement, so the quadrant and the exponent come out with bit operations alone.
 //!
 //! ```
-//! use speckle_estimators::fastmath;
+//! use speckle_endpoints::fastmath;
 //! let (s, c) = fastmath::sin_cos(1.0e5);
 //! assert!((s - 1.0e5f64.sin()).abs() < 1e-15 && (c - 1.0e5f64.cos()).abs() < 1e-15);
 //! assert!((fastmath::exp(-3.5) / (-3.5f64).exp() - 1.0).abs() < 1e-15);
 //! ```
-
-pub use crate::endpoints::{Endpoints, Legs};
 
 /// `1.5 * 2^52`: adding and subtracting it rounds a double of magnitude below `2^51` to an
 /// integer (round half to even).

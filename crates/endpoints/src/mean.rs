@@ -26,23 +26,23 @@
 //! amplitude per unit length into the forward plane wave). The area integral runs over the exit
 //! edges with the same 1D rule.
 
-use crate::endpoints::spreading;
-use crate::{EstimatorError, Pair, Scene, Sensor, Source};
+use crate::kernels::spreading;
+use crate::{EndpointError, Sensor, Source};
 use glam::DVec3;
 use num_complex::Complex64;
-use rayon::prelude::*;
 use speckle_medium::{Dimension, Medium, field_attenuation};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::PI;
 
-/// The speckle mean of one pair.
-pub fn speckle_mean<M: Medium, P: PhaseFunction>(
-    scene: &Scene<M, P>,
-    pair: Pair,
-) -> Result<Complex64, EstimatorError> {
-    let (m, k) = (scene.medium(), scene.wavenumber());
-    let src = scene.sources()[pair.source];
-    let sen = scene.sensors()[pair.sensor];
+/// The speckle mean of the pair (`source`, `sensor`) in `medium`, whose particle types have the
+/// amplitude functions `phases`, at wavenumber `k`.
+pub fn mean_field<M: Medium, P: PhaseFunction>(
+    m: &M,
+    phases: &[P],
+    k: f64,
+    src: Source,
+    sen: Sensor,
+) -> Result<Complex64, EndpointError> {
     Ok(match (src, sen) {
         (Source::Point { position: p }, Sensor::Point { position: q }) => {
             let r = (q - p).length();
@@ -66,7 +66,7 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
         (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
             let sigma_t = m
                 .uniform_sigma_t()
-                .ok_or_else(|| EstimatorError::InvalidInput {
+                .ok_or_else(|| EndpointError::InvalidInput {
                     field: "medium".into(),
                     reason: "the far-field to far-field mean needs a medium of uniform \
                              extinction (its closed form integrates over a homogeneous box); \
@@ -80,7 +80,7 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
                     Complex64::from_polar(0.5 * sigma_t * (k / (2.0 * PI)).sqrt(), 0.75 * PI)
                 }
             };
-            let amp = forward * relative_amplitude(scene, i, v);
+            let amp = forward * relative_amplitude(m, phases, i, v);
             amp * box_integral(m.bounds(), k, sigma_t, i, v)
         }
     })
@@ -92,31 +92,18 @@ pub fn speckle_mean<M: Medium, P: PhaseFunction>(
 /// when the types share one albedo and `beta` is uniform, and in any case exact forward, where the
 /// far-field mean lives.
 fn relative_amplitude<M: Medium, P: PhaseFunction>(
-    scene: &Scene<M, P>,
+    m: &M,
+    phases: &[P],
     i: DVec3,
     v: DVec3,
 ) -> Complex64 {
     let ratio = |p: &P| p.amplitude_between(i, v) / p.amplitude_between(i, i);
-    let phases = scene.phases();
     if phases.len() == 1 {
         return ratio(&phases[0]);
     }
     let mut beta = vec![0.0; phases.len()];
-    scene
-        .medium()
-        .type_probabilities(scene.medium().bounds().lerp([0.5; 3]), &mut beta);
+    m.type_probabilities(m.bounds().lerp([0.5; 3]), &mut beta);
     phases.iter().zip(&beta).map(|(p, b)| *b * ratio(p)).sum()
-}
-
-/// The speckle means of all pairs of a scene, in pair order.
-pub fn speckle_means<M: Medium, P: PhaseFunction>(
-    scene: &Scene<M, P>,
-) -> Result<Vec<Complex64>, EstimatorError> {
-    scene
-        .pairs()
-        .par_iter()
-        .map(|&p| speckle_mean(scene, p))
-        .collect()
 }
 
 const GL4: [(f64, f64); 4] = [
@@ -187,22 +174,29 @@ fn box_integral(b: &speckle_medium::Aabb, k: f64, sigma_t: f64, i: DVec3, v: DVe
 mod tests {
     use super::*;
     use speckle_medium::{Aabb, HomogeneousBox};
-    use speckle_paths::TracerConfig;
     use speckle_phase::Phase;
 
-    fn scene(src: Source, sen: Sensor, size: DVec3) -> Scene<HomogeneousBox, Phase> {
+    /// A box of the given size with `sigma_s = 0.2`, `sigma_a = 0.05`, HG 0.3, wavelength 1.
+    struct Setup {
+        medium: HomogeneousBox,
+        phases: [Phase; 1],
+        src: Source,
+        sen: Sensor,
+    }
+
+    fn scene(src: Source, sen: Sensor, size: DVec3) -> Setup {
         let b = Aabb::centered(DVec3::ZERO, size).unwrap();
-        let m = HomogeneousBox::new(b, 0.2, 0.05).unwrap();
-        Scene::new(
-            m,
-            Phase::hg(0.3).unwrap(),
-            1.0,
-            vec![src],
-            vec![sen],
-            Pair::all(1, 1),
-            TracerConfig::default(),
-        )
-        .unwrap()
+        let medium = HomogeneousBox::new(b, 0.2, 0.05).unwrap();
+        Setup {
+            medium,
+            phases: [Phase::hg(0.3).unwrap()],
+            src,
+            sen,
+        }
+    }
+
+    fn speckle_mean(s: &Setup) -> Complex64 {
+        mean_field(&s.medium, &s.phases, 2.0 * PI, s.src, s.sen).unwrap()
     }
 
     #[test]
@@ -218,14 +212,7 @@ mod tests {
             },
             size,
         );
-        let m = speckle_mean(
-            &s,
-            Pair {
-                source: 0,
-                sensor: 0,
-            },
-        )
-        .unwrap();
+        let m = speckle_mean(&s);
         let k = 2.0 * PI;
         let expect =
             Complex64::new(0.0, k * 24.0 / (2.0 * PI)) * (1.0 - (-0.25f64 * 3.0 / 2.0).exp());
@@ -245,7 +232,7 @@ mod tests {
             Sensor::FarField { direction: v },
             size,
         );
-        let b = *s.medium().bounds();
+        let b = *s.medium.bounds();
         let (k, st) = (2.0 * PI, 0.25);
         let got = box_integral(&b, k, st, i, v);
         // Brute-force midpoint rule in 3D.
@@ -281,14 +268,7 @@ mod tests {
             Sensor::Point { position: q },
             size,
         );
-        let m = speckle_mean(
-            &s,
-            Pair {
-                source: 0,
-                sensor: 0,
-            },
-        )
-        .unwrap();
+        let m = speckle_mean(&s);
         // 2 units of medium with sigma_t = 0.25 on a 7-unit line.
         let expect = Complex64::from_polar((-0.25f64).exp() / 7.0, 2.0 * PI * 7.0);
         assert!((m - expect).norm() < 1e-12);

@@ -8,7 +8,7 @@
 /// not depend on the thread that runs it. Portable and value-stable across platforms.
 ///
 /// ```
-/// use speckle_paths::PathRng;
+/// use speckle_stats::PathRng;
 /// let mut a = PathRng::new(7, 42);
 /// let mut b = PathRng::new(7, 42);
 /// assert_eq!(a.next_f64(), b.next_f64());

@@ -9,7 +9,7 @@
 //!
 //! Both accumulators here fill the upper triangle (diagonal included) of a row-major `J x J`
 //! buffer with `sum_n w_n a_n[r] conj(a_n[c])`, `c >= r`, and leave the strict lower triangle
-//! untouched: the layout of the batch sums ([`crate::moments::BatchSum`]). Seen column-major,
+//! untouched: the layout of the batch sums ([`crate::BatchSum`]). Seen column-major,
 //! the buffer is `C^T`, whose lower triangle is that upper triangle, so one call of faer's
 //! triangular product with a lower-triangular destination fills it, at half the flops of the
 //! full product.
@@ -58,7 +58,7 @@ pub const BLOCK_COLUMNS: usize = 64;
 ///
 /// ```
 /// use num_complex::Complex64;
-/// use speckle_estimators::{BlockAccumulator, rank1_upper};
+/// use speckle_stats::{BlockAccumulator, rank1_upper};
 /// let j = 3;
 /// let a = [Complex64::new(1.0, 2.0), Complex64::new(0.5, -1.0), Complex64::new(-2.0, 0.25)];
 /// let (mut by_block, mut by_rank1) = (vec![Complex64::ZERO; j * j], vec![Complex64::ZERO; j * j]);

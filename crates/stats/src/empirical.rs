@@ -1,10 +1,10 @@
 //! Empirical mean and covariance of sampled field vectors, with standard errors.
 //!
 //! Shared by everything that produces `R` independent realizations of a `J`-vector of fields:
-//! the Monte Carlo field sampler ([`crate::render_fields`], [`crate::FieldEstimate::fields`])
+//! the Monte Carlo field sampler (`speckle_estimators::render_fields`)
 //! and the exact wave solver (`speckle-wave`), so that both are summarised the same way.
 
-use crate::{CMatrix, EstimatorError, MatrixEstimate};
+use crate::{CMatrix, MatrixEstimate, StatsError};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -34,7 +34,7 @@ struct BlockSums {
 }
 
 /// The empirical mean and covariance of the rows of `fields` (`R x J`: one realization per row,
-/// as in [`crate::FieldEstimate::fields`]), with standard errors. Needs `R >= 2`.
+/// as in `speckle_estimators::FieldEstimate::fields`), with standard errors. Needs `R >= 2`.
 ///
 /// With centred fields `c_r = u_r - m`:
 /// - covariance `C_ij = (1 / (R - 1)) sum_r d_rij`, `d_rij = c_ri conj(c_rj)` (unbiased);
@@ -50,7 +50,7 @@ struct BlockSums {
 ///
 /// ```
 /// use num_complex::Complex64;
-/// use speckle_estimators::{CMatrix, empirical_moments};
+/// use speckle_stats::{CMatrix, empirical_moments};
 /// let c = |re: f64, im: f64| Complex64::new(re, im);
 /// // Three realizations of a 2-vector.
 /// let f = CMatrix::from_vec(3, 2, vec![c(1.0, 0.0), c(0.0, 1.0), c(3.0, 0.0), c(0.0, -1.0),
@@ -62,10 +62,10 @@ struct BlockSums {
 /// // C_01 = (1/2) sum (u_0 - 2) conj(u_1) = (1/2) ((-1)(-i) + (1)(i)) = i.
 /// assert!((m.covariance.value.get(0, 1) - c(0.0, 1.0)).norm() < 1e-15);
 /// ```
-pub fn empirical_moments(fields: &CMatrix) -> Result<EmpiricalMoments, EstimatorError> {
+pub fn empirical_moments(fields: &CMatrix) -> Result<EmpiricalMoments, StatsError> {
     let (r, j) = (fields.rows(), fields.cols());
     if r < 2 {
-        return Err(EstimatorError::InvalidInput {
+        return Err(StatsError::InvalidInput {
             field: "fields".into(),
             reason: format!("at least two realizations are needed for a covariance (got {r})"),
         });
@@ -176,7 +176,7 @@ pub fn empirical_moments(fields: &CMatrix) -> Result<EmpiricalMoments, Estimator
 #[cfg(test)]
 mod tests {
     use super::*;
-    use speckle_paths::PathRng;
+    use crate::PathRng;
 
     #[test]
     fn matches_a_direct_computation() {
@@ -240,7 +240,7 @@ mod tests {
     fn needs_two_realizations() {
         let f = CMatrix::zeros(1, 3);
         match empirical_moments(&f) {
-            Err(EstimatorError::InvalidInput { field, .. }) => assert_eq!(field, "fields"),
+            Err(StatsError::InvalidInput { field, .. }) => assert_eq!(field, "fields"),
             other => panic!("{other:?}"),
         }
     }

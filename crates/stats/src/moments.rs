@@ -8,7 +8,7 @@ use std::sync::{Mutex, PoisonError};
 
 /// Which entries of the `J x J` Hermitian matrix `sum w a a^H` are accumulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Layout {
+pub enum Layout {
     /// The upper triangle, stored in a full row-major `J x J` buffer.
     Full,
     /// The diagonal only (intensities), stored as a `J` vector.
@@ -28,12 +28,12 @@ impl Layout {
 /// The sum `sum w a a^H` of one batch, in the entries of a [`Layout`].
 ///
 /// The diagonal `sum w |a_j|^2` is summed in real arithmetic, vertex by vertex, in both layouts
-/// alike, so that [`crate::render_intensity`] gives bitwise the diagonal of
-/// [`crate::render_covariance`]. A full matrix's other entries go through a [`BlockAccumulator`]
+/// alike, so that an intensity-only render gives bitwise the diagonal of
+/// the full covariance render. A full matrix's other entries go through a [`BlockAccumulator`]
 /// (rank-[`BLOCK_COLUMNS`] updates), whose diagonal is then replaced; a `1 x 1` matrix is its
 /// diagonal alone.
 #[derive(Debug, Clone)]
-pub(crate) struct BatchSum {
+pub struct BatchSum {
     /// The diagonal.
     diag: Vec<f64>,
     /// [`Layout::Full`] with `J > 1`: the row-major `J x J` sum (upper triangle) and its
@@ -89,7 +89,7 @@ impl BatchSum {
 /// one-thread render at `J = 512` with 32 paths per batch), clearing it again a tenth; a
 /// recycled one is handed out as it is (see [`BlockAccumulator::start_sum`]).
 #[derive(Debug, Default)]
-pub(crate) struct Buffers(Mutex<Vec<Vec<Complex64>>>);
+pub struct Buffers(Mutex<Vec<Vec<Complex64>>>);
 
 impl Buffers {
     /// A buffer of `len` entries of arbitrary values.
@@ -120,7 +120,7 @@ impl Buffers {
 /// `(sum_b S_b^2 / n_b - N mean^2) / (B - 1)` (each batch sum has variance `n_b sigma^2`), for the
 /// real and imaginary parts separately, and the standard error of the mean is `sigma / sqrt(N)`.
 #[derive(Debug, Clone)]
-pub(crate) struct Moments {
+pub struct Moments {
     layout: Layout,
     j: usize,
     sum: Vec<Complex64>,
@@ -131,6 +131,7 @@ pub(crate) struct Moments {
 }
 
 impl Moments {
+    /// Empty moments of `J`-vector sums in `layout`.
     pub fn new(layout: Layout, j: usize) -> Self {
         let len = layout.len(j);
         Self {
