@@ -37,9 +37,8 @@
 //! its standard error and the new and old model values (4000 configurations, about 7 minutes on
 //! two cores: `cargo test --release --test mean_reflection -- --ignored --nocapture`).
 
-use speckle::estimators::{NoProgress, Pair, Scene, Sensor, Source, speckle_means};
+use speckle::estimators::{NoProgress, Pair, Scene, Sensor, Source};
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::paths::TracerConfig;
 use speckle::phase::{Complex64, Dimension, Phase, rotate_in_plane};
 use speckle::wave::{WaveEstimate, WaveOptions, render_wave};
 use std::f64::consts::PI;
@@ -145,7 +144,6 @@ fn flatland_reflection_mean_matches_the_wave_solver() {
         sources,
         sensors,
         pairs,
-        TracerConfig::default(),
     )
     .unwrap();
     let t0 = std::time::Instant::now();
@@ -159,7 +157,7 @@ fn flatland_reflection_mean_matches_the_wave_solver() {
     )
     .unwrap();
     let t_wave = t0.elapsed();
-    let new = speckle_means(&scene).unwrap();
+    let new = scene.means().unwrap();
     let dirs = |p: &Pair| match (scene.sources()[p.source], scene.sensors()[p.sensor]) {
         (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => (i, v),
         _ => unreachable!(),
@@ -242,7 +240,6 @@ fn issue_box_backscatter_mean_matches_the_wave_solver() {
         vec![Source::plane_wave(DVec3::Z).unwrap()],
         sensors,
         Pair::all(1, angles.len()),
-        TracerConfig::default(),
     )
     .unwrap();
     let configurations = std::env::var("MEAN_REFLECTION_R")
@@ -258,7 +255,7 @@ fn issue_box_backscatter_mean_matches_the_wave_solver() {
         &NoProgress,
     )
     .unwrap();
-    let new = speckle_means(&scene).unwrap();
+    let new = scene.means().unwrap();
     // Exact backscatter, closed forms: (i k sigma / 4 pi) W^2 e^{-ikL} int_0^L e^{(2ik - a) s} ds.
     let at_back = Complex64::new(0.0, K * sigma_t / (4.0 * PI)) * w * w;
     let at_back = at_back * Complex64::from_polar(1.0, -K * l);

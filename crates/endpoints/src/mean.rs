@@ -409,29 +409,17 @@ mod tests {
     }
 
     /// A lossless box of isotropic scatterers lit by `i`, one far-field sensor `v`.
-    fn lossless(b: Aabb, mean_free_path: f64, i: DVec3, v: DVec3) -> Scene<HomogeneousBox, Phase> {
-        let m = HomogeneousBox::from_mean_free_path(b, mean_free_path, 1.0).unwrap();
-        Scene::new(
-            m,
-            Phase::isotropic(b.dimension()),
-            1.0,
-            vec![Source::PlaneWave { direction: i }],
-            vec![Sensor::FarField { direction: v }],
-            Pair::all(1, 1),
-            TracerConfig::default(),
-        )
-        .unwrap()
+    fn lossless(b: Aabb, mean_free_path: f64, i: DVec3, v: DVec3) -> Setup {
+        Setup {
+            medium: HomogeneousBox::from_mean_free_path(b, mean_free_path, 1.0).unwrap(),
+            phases: [Phase::isotropic(b.dimension())],
+            src: Source::PlaneWave { direction: i },
+            sen: Sensor::FarField { direction: v },
+        }
     }
 
-    fn mean_of(s: &Scene<HomogeneousBox, Phase>) -> Complex64 {
-        speckle_mean(
-            s,
-            Pair {
-                source: 0,
-                sensor: 0,
-            },
-        )
-        .unwrap()
+    fn mean_of(s: &Setup) -> Complex64 {
+        speckle_mean(s)
     }
 
     /// `int_0^L e^{(2ik - a) s} ds = (1 - e^{(2ik - a) L}) / (a - 2ik)`: the depth integral at
