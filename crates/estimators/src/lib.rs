@@ -51,18 +51,9 @@ pub use covariance::{
 pub use fields::{FieldEstimate, FieldOptions, render_fields};
 // The types every caller of the estimators handles, defined in the crates below.
 pub use speckle_endpoints::{Pair, Sensor, Source};
+pub use speckle_paths::Coherence;
 pub use speckle_scene::Scene;
 pub use speckle_stats::{CMatrix, MatrixEstimate, NoProgress, Progress};
-
-/// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Coherence {
-    /// Forward and reversed paths: coherent backscattering included (Eq. 31). The default.
-    #[default]
-    ForwardAndReversed,
-    /// Forward paths only (the correlation transfer equation; no coherent backscattering).
-    ForwardOnly,
-}
 
 /// Errors of the estimators.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

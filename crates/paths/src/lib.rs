@@ -30,6 +30,16 @@ pub use first::{FirstDirection, FirstVertex};
 pub use speckle_stats::PathRng;
 pub use tracer::{Tracer, TracerConfig, Vertex, VertexSink};
 
+/// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Coherence {
+    /// Forward and reversed paths: coherent backscattering included (Eq. 31). The default.
+    #[default]
+    ForwardAndReversed,
+    /// Forward paths only (the correlation transfer equation; no coherent backscattering).
+    ForwardOnly,
+}
+
 /// Errors raised when a tracer is configured with something it cannot sample.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PathError {
