@@ -8,6 +8,9 @@
 //!
 //! - [`medium`]: bulk media and their geometry;
 //! - [`phase`]: phase and scattering-amplitude functions;
+//! - [`vmf`]: complex von Mises-Fisher algebra and vMF-mixture fits of amplitudes (below
+//!   [`phase`], which renders a mixture as `Phase::Vmf` and fits any phase function with
+//!   `phase::fit_vmf`);
 //! - [`paths`]: counter-based random streams and volumetric sub-path sampling;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
