@@ -5,8 +5,8 @@ use crate::npy::encode_f8;
 use crate::output::Staged;
 use serde_json::json;
 use speckle::medium::Dimension;
-use speckle::phase::{Complex64, MieSphere, Phase, PhaseFunction};
-use speckle::vmf::{FitOptions, FitReport, fit_amplitude, fit_amplitude_fixed};
+use speckle::phase::{Complex64, MieSphere, Phase, PhaseFunction, fit_vmf, fit_vmf_fixed};
+use speckle::vmf::{FitOptions, FitReport};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -130,9 +130,9 @@ pub fn run(r: &FitRequest) -> anyhow::Result<()> {
         InputError(format!("{flag}: {text}"))
     })?;
     let report = match r.components {
-        Some(k) => fit_amplitude_fixed(&target, k, &options)
+        Some(k) => fit_vmf_fixed(&target, k, &options)
             .map_err(|e| InputError(format!("--components: {e}")))?,
-        None => fit_amplitude(&target, &options).map_err(|e| InputError(e.to_string()))?,
+        None => fit_vmf(&target, &options).map_err(|e| InputError(e.to_string()))?,
     };
     say!("{}", report_text(&what, &report).trim_end());
     let Some(dir) = &r.out else {

@@ -830,10 +830,7 @@ fn build_phase(
             }
             let lobes = gamma.iter().copied().zip(alpha.iter().copied()).collect();
             let m = speckle::vmf::VmfMixture::new(lobes).map_err(|e| bad(field, e))?;
-            let table = m
-                .to_tabulated(m.recommended_angles())
-                .map_err(|e| bad(field, e))?;
-            Ok(Phase::Tabulated(Arc::new(table)))
+            Ok(Phase::Vmf(Arc::new(m)))
         }
     }
 }

@@ -278,6 +278,19 @@ fn mie_and_fit_phase_write_files_a_scene_can_use() {
         o.status.success() && t.contains("mean cosine 0.9000"),
         "{t}"
     );
+    // The scene renders the mixture itself (Phase::Vmf, not a table): its mean cosine is the
+    // fit's closed-form g, bitwise (the table carries 18 significant digits).
+    let o = speckle(dir.path(), &["covariance", "v.toml", "-q", "--no-png"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.path().join("out/m.cov.npy").exists());
+    let json = |p: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(p)).unwrap()).unwrap()
+    };
+    let g_fit = json("o/fit.vmf.json")["g_fit"].as_f64().unwrap();
+    let g_scene = json("out/m.cov.json")["derived"]["phase_mean_cosine"]
+        .as_f64()
+        .unwrap();
+    assert_eq!(g_scene, g_fit);
     // Bad input: exit 2 naming the option.
     for (args, field) in [
         (&["fit-phase", "--hg", "1.0"][..], "--hg"),

@@ -12,6 +12,11 @@
 //!
 //! Cosines are taken between the propagation direction before and after scattering: `mu = 1` is
 //! forward scattering.
+//!
+//! vMF-mixture amplitudes (Bar et al. 2020, Eq. 28) come from `speckle-vmf`, which sits below
+//! this crate: [`VmfMixture`] implements [`PhaseFunction`] here and renders directly as
+//! [`Phase::Vmf`] (exact sampler, closed-form mean cosine), and [`fit_vmf`] fits a mixture to any
+//! 3D phase function.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -24,6 +29,7 @@ mod mie;
 mod mixture;
 mod sphere;
 mod tabulated;
+mod vmf;
 
 pub use dimension::Dimension;
 pub use flat::{
@@ -36,8 +42,10 @@ pub use mie::{
 };
 pub use mixture::HgMixture;
 pub use num_complex::Complex64;
+pub use speckle_vmf::VmfMixture;
 pub use sphere::{UNIFORM_SPHERE_PDF, orthonormal_basis, uniform_sphere};
 pub use tabulated::TabulatedAmplitude;
+pub use vmf::{fit_vmf, fit_vmf_fixed};
 
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -145,6 +153,9 @@ pub enum Phase {
     FlatHenyeyGreenstein(FlatHenyeyGreenstein),
     /// A flatland complex amplitude tabulated over `[0, 2 pi]`.
     FlatTabulated(Arc<FlatTabulatedAmplitude>),
+    /// A mixture of vMF lobes with a real positive amplitude (Bar et al. 2020, Eq. 28), as fitted
+    /// by [`fit_vmf`]; sampled exactly, closed-form mean cosine.
+    Vmf(Arc<VmfMixture>),
 }
 
 impl Phase {
@@ -200,6 +211,10 @@ macro_rules! dispatch {
                 let $p = &**$p;
                 $e
             }
+            Phase::Vmf($p) => {
+                let $p = &**$p;
+                $e
+            }
         }
     };
 }
@@ -243,7 +258,8 @@ impl PhaseFunction for Phase {
             Phase::Isotropic
             | Phase::HenyeyGreenstein(_)
             | Phase::Tabulated(_)
-            | Phase::HgMixture(_) => Dimension::Three,
+            | Phase::HgMixture(_)
+            | Phase::Vmf(_) => Dimension::Three,
             Phase::FlatIsotropic | Phase::FlatHenyeyGreenstein(_) | Phase::FlatTabulated(_) => {
                 Dimension::Two
             }
@@ -276,7 +292,8 @@ impl Phase {
 #[cfg(any(test, feature = "testing"))]
 pub mod testing {
     //! Helpers of the statistical tests of this workspace (uniform streams, Kolmogorov-Smirnov
-    //! statistics, moments by quadrature), shared checks every phase function must pass;
+    //! statistics, moments, Gauss-Legendre rules and CDFs by quadrature), shared checks every
+    //! phase function must pass;
     //! compiled for this crate's tests and, with the `testing` feature, for other crates' tests.
     use super::*;
 
@@ -351,6 +368,79 @@ pub mod testing {
 
     /// 1.95 is the 0.1% critical value of the Kolmogorov distribution.
     pub const KS_CRITICAL_0_001: f64 = 1.95;
+
+    /// Gauss-Legendre nodes and weights on [-1, 1] (Newton on the three-term recurrence).
+    pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|i| {
+                let mut t = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+                let mut dp = 1.0;
+                for _ in 0..100 {
+                    let (mut p0, mut p1) = (1.0, t);
+                    for k in 2..=n {
+                        let k = k as f64;
+                        let p2 = ((2.0 * k - 1.0) * t * p1 - (k - 1.0) * p0) / k;
+                        p0 = p1;
+                        p1 = p2;
+                    }
+                    dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
+                    let step = p1 / dp;
+                    t -= step;
+                    if step.abs() < 1e-16 {
+                        break;
+                    }
+                }
+                (t, 2.0 / ((1.0 - t * t) * dp * dp))
+            })
+            .collect()
+    }
+
+    /// The CDF of the cosine under a 3D `density`, `P(cos theta <= mu)`, by 8-point
+    /// Gauss-Legendre panels in `theta` accumulated from `theta = pi`: exact to the quadrature
+    /// error also inside a panel, and it resolves sharp forward lobes (the grid is uniform in
+    /// `theta`, dense in `mu` near `mu = +-1`).
+    pub struct QuadratureCdf<'a> {
+        density: &'a dyn Fn(f64) -> f64,
+        rule: Vec<(f64, f64)>,
+        h: f64,
+        /// `tail[p] = P(theta >= p h)`, unnormalised.
+        tail: Vec<f64>,
+    }
+
+    impl<'a> QuadratureCdf<'a> {
+        /// The CDF of `density` with `panels` equal panels in `theta` on `[0, pi]`.
+        pub fn new(density: &'a dyn Fn(f64) -> f64, panels: usize) -> Self {
+            let h = PI / panels as f64;
+            let mut cdf = Self {
+                density,
+                rule: gauss_legendre(8),
+                h,
+                tail: vec![0.0; panels + 1],
+            };
+            for p in (0..panels).rev() {
+                cdf.tail[p] = cdf.tail[p + 1] + cdf.piece(p as f64 * h, (p + 1) as f64 * h);
+            }
+            cdf
+        }
+
+        /// `2 pi int_a^b rho(cos theta) sin theta dtheta`.
+        fn piece(&self, a: f64, b: f64) -> f64 {
+            let mut s = 0.0;
+            for &(x, w) in &self.rule {
+                let t = 0.5 * (a + b) + 0.5 * (b - a) * x;
+                s += w * (self.density)(t.cos()) * t.sin();
+            }
+            2.0 * PI * 0.5 * (b - a) * s
+        }
+
+        /// `P(cos theta <= mu)`.
+        pub fn cdf(&self, mu: f64) -> f64 {
+            let theta = mu.clamp(-1.0, 1.0).acos();
+            let p = ((theta / self.h) as usize).min(self.tail.len() - 2);
+            let upper = (p + 1) as f64 * self.h;
+            (self.tail[p + 1] + self.piece(theta, upper)) / self.tail[0]
+        }
+    }
 }
 
 #[cfg(test)]

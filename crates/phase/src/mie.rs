@@ -576,6 +576,7 @@ fn riccati_psi_from(x: f64, n_max: usize, top: usize) -> Vec<f64> {
 mod tests {
     use super::*;
     use crate::PhaseFunction;
+    use crate::testing::gauss_legendre;
 
     fn c(re: f64, im: f64) -> Complex64 {
         Complex64::new(re, im)
@@ -615,32 +616,6 @@ mod tests {
             err <= 0.5005 * ulp,
             "{what}: computed {computed:.7}, published {printed} ({decimals} decimals)"
         );
-    }
-
-    /// Gauss-Legendre nodes and weights on [-1, 1] (Newton on the three-term recurrence).
-    fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-        (0..n)
-            .map(|i| {
-                let mut t = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-                let mut dp = 1.0;
-                for _ in 0..100 {
-                    let (mut p0, mut p1) = (1.0, t);
-                    for k in 2..=n {
-                        let k = k as f64;
-                        let p2 = ((2.0 * k - 1.0) * t * p1 - (k - 1.0) * p0) / k;
-                        p0 = p1;
-                        p1 = p2;
-                    }
-                    dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
-                    let step = p1 / dp;
-                    t -= step;
-                    if step.abs() < 1e-16 {
-                        break;
-                    }
-                }
-                (t, 2.0 / ((1.0 - t * t) * dp * dp))
-            })
-            .collect()
     }
 
     // ---------------------------------------------------------------------------------------

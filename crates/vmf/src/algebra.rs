@@ -391,7 +391,7 @@ mod tests {
         } else {
             DVec3::Z
         };
-        let (t1, t2) = speckle_phase::orthonormal_basis(axis);
+        let (t1, t2) = axis.any_orthonormal_pair();
         let shift = re.length();
         let h = ComplexVmf::new(Complex64::new(-shift, 0.0), mu);
         // Panels [0, 1e-6], then geometric up to 2.
@@ -486,7 +486,11 @@ mod tests {
     }
 
     fn arb_unit() -> impl Strategy<Value = DVec3> {
-        (0.0..1.0f64, 0.0..1.0f64).prop_map(|(u, v)| speckle_phase::uniform_sphere([u, v]))
+        // Uniform on the sphere: z uniform in [-1, 1], azimuth uniform.
+        (-1.0..1.0f64, 0.0..(2.0 * PI)).prop_map(|(z, phi)| {
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
     }
 
     proptest! {

@@ -4,7 +4,6 @@
 use crate::VmfError;
 use crate::algebra::{inverse_mean_resultant_length, ln_vmf_normaliser};
 use crate::mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfMixture};
-use speckle_phase::{Dimension, PhaseFunction};
 use std::f64::consts::PI;
 
 /// Options of [`fit_amplitude`] and [`fit_amplitude_fixed`]. Build with `Default` and struct
@@ -94,7 +93,7 @@ impl FitOptions {
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitReport {
     /// The fitted mixture; its [`VmfMixture::raw_amplitude`] approximates the target's `|s|`
-    /// (scaled so that `int s_fit dOmega = int |s| dOmega`), and as a [`PhaseFunction`] it is
+    /// (scaled so that `int s_fit dOmega = int |s| dOmega`), and its [`VmfMixture::amplitude`] is
     /// normalised.
     pub mixture: VmfMixture,
     /// Number of lobes (after pruning and merging; can be below the number requested).
@@ -104,7 +103,7 @@ pub struct FitReport {
     pub residual: f64,
     /// The target's mean cosine.
     pub g_target: f64,
-    /// The fitted (normalised) phase function's mean cosine.
+    /// The fitted (normalised) mixture's mean cosine, [`VmfMixture::mean_cosine`].
     pub g_fit: f64,
     /// EM iterations spent on the returned fit.
     pub iterations: u64,
@@ -115,34 +114,43 @@ pub struct FitReport {
 /// Largest accepted `|g_fit - g_target|` after the mean-cosine correction.
 pub const G_TOLERANCE: f64 = 1e-6;
 
-/// Fits `|s|` of a 3D phase function with the smallest number of vMF lobes `k = 1, 2, ...,
+/// Fits the modulus `|s(mu)|` of a normalised 3D scattering amplitude (`int |s|^2 dOmega = 1`)
+/// whose mean cosine is `mean_cosine`, with the smallest number of vMF lobes `k = 1, 2, ...,
 /// max_components` whose relative L2 residual is at most `options.tolerance`, and returns that
 /// fit with `converged: true`; if no `k` reaches it, the fit with the smallest residual, with
 /// `converged: false`.
 ///
-/// Each `k` is fitted by [`fit_amplitude_fixed`]; see there for the method.
+/// `modulus` is called at the quadrature nodes only (`options.angles` times). For a phase
+/// function of `speckle-phase`, `speckle_phase::fit_vmf(&phase, &options)` passes
+/// `|s| = sqrt(rho)` and `g` for you. Each `k` is fitted by [`fit_amplitude_fixed`]; see there for
+/// the method.
 ///
-/// Errors: invalid options ([`VmfError::InvalidOption`]); a flatland target
-/// ([`VmfError::UnsupportedDimension`]); a target whose density is not finite and non-negative
-/// on the grid, or that the grid does not resolve ([`VmfError::InvalidTarget`]).
+/// Errors: invalid options ([`VmfError::InvalidOption`]); a target whose modulus is not finite
+/// and non-negative on the grid, that is not normalised or that the grid does not resolve, or
+/// whose `mean_cosine` is not in `(-1, 1)` or disagrees with the quadrature of `|s|^2`
+/// ([`VmfError::InvalidTarget`]).
 ///
 /// ```
-/// use speckle_phase::{HenyeyGreenstein, PhaseFunction};
 /// use speckle_vmf::{FitOptions, fit_amplitude};
-/// let hg = HenyeyGreenstein::new(0.9).unwrap();
-/// let fit = fit_amplitude(&hg, &FitOptions::default()).unwrap();
+/// use std::f64::consts::PI;
+/// // Henyey-Greenstein: |s| = sqrt(rho), rho = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2)).
+/// let g = 0.9;
+/// let rho = |mu: f64| (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
+/// let modulus = |mu: f64| rho(mu).sqrt();
+/// let fit = fit_amplitude(modulus, g, &FitOptions::default()).unwrap();
 /// assert!(fit.converged && fit.residual <= 0.02);
 /// assert!((fit.mixture.mean_cosine() - 0.9).abs() <= 1e-6);
 /// // The fitted amplitude has the target's scale.
-/// let (a, b) = (fit.mixture.raw_amplitude(0.5), hg.density(0.5).sqrt());
+/// let (a, b) = (fit.mixture.raw_amplitude(0.5), modulus(0.5));
 /// assert!((a - b).abs() < 0.1 * b);
 /// ```
 pub fn fit_amplitude(
-    target: &dyn PhaseFunction,
+    modulus: impl Fn(f64) -> f64,
+    mean_cosine: f64,
     options: &FitOptions,
 ) -> Result<FitReport, VmfError> {
     options.validate()?;
-    let problem = Problem::new(target, options)?;
+    let problem = Problem::new(&modulus, mean_cosine, options)?;
     let mut best: Option<FitReport> = None;
     for k in 1..=options.max_components {
         let report = problem.fit(k, options)?;
@@ -156,14 +164,15 @@ pub fn fit_amplitude(
     Ok(best.expect("max_components >= 1"))
 }
 
-/// Fits `|s|` of a 3D phase function with (at most) `k` vMF lobes on the axis `+-i`, `k` in
-/// `1..=64`.
+/// Fits the modulus `|s(mu)|` of a normalised 3D scattering amplitude with mean cosine
+/// `mean_cosine` (as for [`fit_amplitude`]) with (at most) `k` vMF lobes on the axis `+-i`, `k`
+/// in `1..=64`.
 ///
 /// Method (notes Sec. 5, the reference `wmovmf.m`), with the differences stated:
 ///
-/// 1. **Target.** The modulus `|s(mu)| = sqrt(target.density(mu))`: any complex phase of the
-///    amplitude (e.g. of Mie data) is discarded, as in the reference, and the fitted `s` is real
-///    and positive.
+/// 1. **Target.** The modulus `|s(mu)|` (for a phase function, `sqrt(rho(mu))`): any complex
+///    phase of the amplitude (e.g. of Mie data) is discarded, as in the reference, and the fitted
+///    `s` is real and positive.
 /// 2. **Samples.** The lobes' axes are fixed to `+-i`, so only `mu = cos theta` matters and the
 ///    reference's random azimuths are integrated out exactly: samples are Gauss-Legendre nodes in
 ///    `theta` (`options.angles`) with weights `W_n = 2 pi w_n sin(theta_n) |s(cos theta_n)|`,
@@ -199,15 +208,16 @@ pub fn fit_amplitude(
 /// Deterministic: the same target, `k` and options give bit-identical results.
 ///
 /// ```
-/// use speckle_phase::PhaseFunction;
 /// use speckle_vmf::{FitOptions, VmfMixture, fit_amplitude_fixed};
 /// let truth = VmfMixture::new(vec![(0.0, 0.3), (20.0, 1.0), (-2.0, 0.2)]).unwrap();
-/// let fit = fit_amplitude_fixed(&truth, 3, &FitOptions::default()).unwrap();
+/// let modulus = |mu| truth.amplitude(mu).re;
+/// let fit = fit_amplitude_fixed(modulus, truth.mean_cosine(), 3, &FitOptions::default()).unwrap();
 /// assert!(fit.residual < 1e-3, "{}", fit.residual);
 /// assert!(fit.converged);
 /// ```
 pub fn fit_amplitude_fixed(
-    target: &dyn PhaseFunction,
+    modulus: impl Fn(f64) -> f64,
+    mean_cosine: f64,
     k: usize,
     options: &FitOptions,
 ) -> Result<FitReport, VmfError> {
@@ -218,7 +228,7 @@ pub fn fit_amplitude_fixed(
             reason: format!("must be in 1..={MAX_COMPONENTS} (got {k})"),
         });
     }
-    let problem = Problem::new(target, options)?;
+    let problem = Problem::new(&modulus, mean_cosine, options)?;
     problem.fit(k, options)
 }
 
@@ -263,11 +273,11 @@ struct Problem {
 }
 
 impl Problem {
-    fn new(target: &dyn PhaseFunction, options: &FitOptions) -> Result<Self, VmfError> {
-        if target.dimension() != Dimension::Three {
-            return Err(VmfError::UnsupportedDimension(target.dimension()));
-        }
-        let g_target = target.mean_cosine();
+    fn new(
+        modulus: &dyn Fn(f64) -> f64,
+        g_target: f64,
+        options: &FitOptions,
+    ) -> Result<Self, VmfError> {
         if !(g_target.is_finite() && g_target.abs() < 1.0) {
             return Err(VmfError::InvalidTarget(format!(
                 "mean cosine {g_target} is not in (-1, 1)"
@@ -288,21 +298,23 @@ impl Problem {
             norm2: 0.0,
             g_target,
         };
+        // int mu |s|^2 dOmega on the grid, to check the given mean cosine.
+        let mut first_moment = 0.0;
         for panel in 0..panels {
             let centre = (panel as f64 + 0.5) * h;
             for (xi, wi) in x.iter().zip(w.iter()) {
                 let theta = centre + 0.5 * h * xi;
                 let (s2, c2) = (0.5 * theta).sin_cos();
                 let mu = theta.cos();
-                let rho = target.density(mu);
-                if !(rho.is_finite() && rho >= 0.0) {
+                let a = modulus(mu);
+                if !(a.is_finite() && a >= 0.0) {
                     return Err(VmfError::InvalidTarget(format!(
-                        "density({mu}) = {rho} is not finite and non-negative"
+                        "|s({mu})| = {a} is not finite and non-negative"
                     )));
                 }
                 // dOmega = 2 pi sin(theta) dtheta
                 let dw = 2.0 * PI * 0.5 * h * wi * theta.sin();
-                let a = rho.sqrt();
+                let rho = a * a;
                 p.mu.push(mu);
                 p.one_minus.push(2.0 * s2 * s2);
                 p.one_plus.push(2.0 * c2 * c2);
@@ -311,15 +323,24 @@ impl Problem {
                 p.weight.push(dw * a);
                 p.total += dw * a;
                 p.norm2 += dw * rho;
+                first_moment += dw * rho * mu;
             }
         }
-        // The target is normalised (int rho dOmega = 1): a quadrature far from 1 means the grid
+        // The target is normalised (int |s|^2 dOmega = 1): a quadrature far from 1 means the grid
         // misses its features.
         if p.norm2.is_nan() || (p.norm2 - 1.0).abs() > 1e-3 {
             return Err(VmfError::InvalidTarget(format!(
-                "the quadrature of the density on {n} angles is {} instead of 1 (a feature \
-                 narrower than the grid, or an unnormalised density): increase FitOptions::angles",
+                "the quadrature of |s|^2 on {n} angles is {} instead of 1 (a feature \
+                 narrower than the grid, or an unnormalised amplitude): increase FitOptions::angles",
                 p.norm2
+            )));
+        }
+        // The mean cosine is given separately from |s|: to the same accuracy, they must agree.
+        let g_grid = first_moment / p.norm2;
+        if (g_grid - g_target).abs() > 1e-3 {
+            return Err(VmfError::InvalidTarget(format!(
+                "mean cosine {g_target} disagrees with the quadrature of |s|^2 on {n} angles \
+                 ({g_grid})"
             )));
         }
         Ok(p)

@@ -6,9 +6,8 @@
 //! - [`ComplexVmf`]: `h(w) = exp(log_scale + mu . w)` with complex `mu`; products, conjugates
 //!   and the sphere integral (Eq. 29) in closed form.
 //! - [`VmfMixture`]: a real amplitude `s(mu) = sum_m pi_m e^(gamma_m mu)` with lobes on the
-//!   axis `+-i` (Eq. 28), usable as a normalised [`speckle_phase::PhaseFunction`] (exact
-//!   sampling, closed-form mean cosine) and convertible to a
-//!   [`speckle_phase::TabulatedAmplitude`] for the estimators.
+//!   axis `+-i` (Eq. 28), with the methods of a normalised phase function (amplitude, density,
+//!   exact sampling of the cosine, closed-form mean cosine).
 //! - [`fit_amplitude`], [`fit_amplitude_fixed`]: the fixed-axis weighted EM of Banerjee, Dhillon,
 //!   Ghosh and Sra, *Clustering on the unit hypersphere using von Mises-Fisher distributions*,
 //!   JMLR 6, 2005, as in the authors' reference code, with automatic choice of the number of
@@ -16,6 +15,12 @@
 //!
 //! Design decisions:
 //!
+//! - **Below the phase functions.** This crate depends on no other crate of the workspace.
+//!   `speckle-phase` depends on it: it implements its `PhaseFunction` trait for [`VmfMixture`]
+//!   by delegating to the inherent methods, renders mixtures directly as `Phase::Vmf` (exact
+//!   sampler, closed-form mean cosine, no table), and wraps the fit for any phase function
+//!   (`speckle_phase::fit_vmf`). So the fit takes its target as plain numbers: the amplitude
+//!   modulus `|s(mu)|` as a closure of the cosine and the target's mean cosine.
 //! - **Log form everywhere.** A vMF is stored as `(ln eta, mu)` and a mixture lobe as
 //!   `(gamma, ln pi)`; sphere integrals use the full form `2 pi e^b (1 - e^(-2b)) / b` with
 //!   `exp_m1` and a Taylor series near `b = 0` (never the truncated `2 pi e^b / b` of the reference
@@ -42,11 +47,9 @@ pub use algebra::{
     ComplexVmf, ln_sinhc, ln_sinhc_complex, ln_vmf_normaliser, mean_resultant_length,
 };
 pub use fit::{FitOptions, FitReport, G_TOLERANCE, fit_amplitude, fit_amplitude_fixed};
-pub use mixture::{MAX_COMPONENTS, MAX_GAMMA, MAX_TABLE_ANGLES, VmfLobe, VmfMixture};
+pub use mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfLobe, VmfMixture};
 
-use speckle_phase::{Dimension, PhaseError};
-
-/// Errors of mixture construction, tabulation and fitting; each names the offending field.
+/// Errors of mixture construction and fitting; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum VmfError {
     /// A mixture needs at least one lobe.
@@ -76,14 +79,6 @@ pub enum VmfError {
         /// The value given.
         value: f64,
     },
-    /// A table node count outside `[2, max]`.
-    #[error("n_angles: must be in [2, {max}] (got {value})")]
-    InvalidAngles {
-        /// The value given.
-        value: usize,
-        /// The maximum.
-        max: usize,
-    },
     /// An invalid fit option or argument.
     #[error("{field}: {reason}")]
     InvalidOption {
@@ -92,13 +87,7 @@ pub enum VmfError {
         /// What is wrong with it.
         reason: String,
     },
-    /// vMF fits are three-dimensional; flatland phase functions are rejected.
-    #[error("target: vMF fits need a 3D phase function (got a {0} one)")]
-    UnsupportedDimension(Dimension),
     /// The fit target cannot be fitted (the message says why).
     #[error("target: {0}")]
     InvalidTarget(String),
-    /// Building a phase table failed.
-    #[error(transparent)]
-    Phase(#[from] PhaseError),
 }

@@ -4,8 +4,7 @@ use crate::VmfError;
 use crate::algebra::{ComplexVmf, LN_4PI, ln_sinhc, ln_vmf_normaliser, mean_resultant_length};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_phase::{PhaseFunction, TabulatedAmplitude};
-use std::f64::consts::{LN_2, PI};
+use std::f64::consts::LN_2;
 
 /// The largest number of lobes of a [`VmfMixture`] (the reference CUDA code allows 13).
 pub const MAX_COMPONENTS: usize = 64;
@@ -14,9 +13,6 @@ pub const MAX_COMPONENTS: usize = 64;
 /// `3e-4` rad) are not resolved by the rest of the pipeline; fits of real phase functions stay
 /// below `1e4`.
 pub const MAX_GAMMA: f64 = 1e7;
-
-/// The largest node count of [`VmfMixture::to_tabulated`].
-pub const MAX_TABLE_ANGLES: usize = 10_000_000;
 
 /// One lobe `pi e^(gamma mu)` of a [`VmfMixture`], `mu = cos theta`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,11 +30,13 @@ pub struct VmfLobe {
 /// `mu = cos theta` is the cosine between the incoming and outgoing directions and
 /// `C_3(k) = k / (4 pi sinh k)`, so that lobe `m` integrates to `alpha_m` over the sphere.
 ///
-/// As a [`PhaseFunction`] (3D only) the mixture is **normalised**:
+/// As a phase function (3D only: [`VmfMixture::amplitude`], [`VmfMixture::density`],
+/// [`VmfMixture::sample_cosine`], [`VmfMixture::mean_cosine`]) the mixture is **normalised**:
 /// `amplitude(mu) = s(mu) / sqrt(Z)` with `Z = int s^2 dOmega = sum_{m,n} pi_m pi_n 4 pi
 /// sinh(gamma_m + gamma_n) / (gamma_m + gamma_n)`, so `int amplitude^2 dOmega = 1`;
 /// [`VmfMixture::raw_amplitude`] is the unnormalised `s` (the fitted scale of
-/// [`crate::fit_amplitude`]). The amplitude is real and positive.
+/// [`crate::fit_amplitude`]). The amplitude is real and positive. `speckle-phase` implements its
+/// `PhaseFunction` trait with these methods, and renders a mixture directly as `Phase::Vmf`.
 ///
 /// `s^2` is a positive mixture of exponentials `e^((gamma_m + gamma_n) mu)`, so the mean cosine has a
 /// closed form (`g = sum_{m,n} w_mn A_3(gamma_m + gamma_n)`, `A_3(c) = coth c - 1/c`) and the cosine
@@ -48,18 +46,13 @@ pub struct VmfLobe {
 /// Every quantity is kept in log form (`|gamma|` reaches `3.4e3` in fits of HG with `g = 0.98`).
 ///
 /// ```
-/// use speckle_phase::{Phase, PhaseFunction};
 /// use speckle_vmf::VmfMixture;
-/// use std::sync::Arc;
 /// // An isotropic floor, a forward lobe and a small back lobe: (gamma, alpha).
 /// let s = VmfMixture::new(vec![(0.0, 0.2), (40.0, 1.0), (-3.0, 0.1)]).unwrap();
 /// assert!(s.mean_cosine() > 0.8 && s.mean_cosine() < 1.0);
 /// assert!((s.amplitude(0.3).re.powi(2) - s.density(0.3)).abs() < 1e-15);
 /// let mu = s.sample_cosine(0.25);
 /// assert!((-1.0..=1.0).contains(&mu));
-/// // Render with it through the estimators' tabulated phase.
-/// let phase = Phase::Tabulated(Arc::new(s.to_tabulated(s.recommended_angles()).unwrap()));
-/// assert!((phase.mean_cosine() - s.mean_cosine()).abs() < 1e-4);
 /// assert!(VmfMixture::new(vec![(1.0, -0.5)]).is_err());
 /// ```
 #[derive(Debug, Clone, PartialEq)]
@@ -224,50 +217,6 @@ impl VmfMixture {
             .collect()
     }
 
-    /// Node count for [`VmfMixture::to_tabulated`]: a spacing of at most a twentieth of the
-    /// angular width `1 / sqrt(2 max|gamma|)` of the sharpest lobe of `s^2`, and at most a quarter
-    /// degree (`max(721, ..)`), capped at [`MAX_TABLE_ANGLES`].
-    pub fn recommended_angles(&self) -> usize {
-        let kappa = self.lobes.iter().map(|l| l.gamma.abs()).fold(0.0, f64::max);
-        let width = 1.0 / (2.0 * kappa).max(1e-300).sqrt();
-        let n = (PI / (width / 20.0))
-            .ceil()
-            .min(MAX_TABLE_ANGLES as f64 - 1.0) as usize
-            + 1;
-        n.clamp(721, MAX_TABLE_ANGLES)
-    }
-
-    /// The normalised amplitude as a [`TabulatedAmplitude`] (real, positive), so that the
-    /// estimators render with it through `Phase::Tabulated(Arc::new(..))`.
-    ///
-    /// Nodes are uniform in the scattering angle, `theta_j = pi j / (n_angles - 1)`, dense in `mu`
-    /// near `mu = +-1` where the lobes are (like `MieSphere::to_tabulated`). The table is linear in
-    /// `|s|^2` between nodes and renormalises itself, so its mean cosine differs from
-    /// [`PhaseFunction::mean_cosine`] by the interpolation error (`O(spacing^2 max|gamma|)`); use
-    /// [`VmfMixture::recommended_angles`] or more nodes.
-    ///
-    /// Errors: `n_angles` outside `[2, MAX_TABLE_ANGLES]`.
-    pub fn to_tabulated(&self, n_angles: usize) -> Result<TabulatedAmplitude, VmfError> {
-        if !(2..=MAX_TABLE_ANGLES).contains(&n_angles) {
-            return Err(VmfError::InvalidAngles {
-                value: n_angles,
-                max: MAX_TABLE_ANGLES,
-            });
-        }
-        let last = n_angles - 1;
-        let mu: Vec<f64> = (0..n_angles)
-            .map(|j| {
-                if 2 * j == last {
-                    0.0
-                } else {
-                    -(PI * j as f64 / last as f64).cos()
-                }
-            })
-            .collect();
-        let s = mu.iter().map(|&m| self.amplitude(m)).collect();
-        Ok(TabulatedAmplitude::new(mu, s)?)
-    }
-
     /// The normalised amplitude `s(mu) / sqrt(Z)` (each term is bounded by the peak amplitude, so
     /// no log-sum is needed).
     #[inline]
@@ -301,19 +250,28 @@ pub(crate) fn sample_exponential_cosine(c: f64, v: f64) -> f64 {
     mu.clamp(-1.0, 1.0)
 }
 
-impl PhaseFunction for VmfMixture {
+/// The normalised amplitude as a phase function: the methods of `speckle_phase::PhaseFunction`,
+/// with the same signatures, which `speckle-phase` delegates to.
+impl VmfMixture {
+    /// The normalised amplitude `s(mu) / sqrt(Z)`, real and positive, with
+    /// `int |amplitude|^2 dOmega = 1`.
     #[inline]
-    fn amplitude(&self, mu: f64) -> Complex64 {
+    pub fn amplitude(&self, mu: f64) -> Complex64 {
         Complex64::new(self.normalised(mu), 0.0)
     }
 
+    /// The phase function `rho(mu) = amplitude(mu)^2`, per steradian.
     #[inline]
-    fn density(&self, mu: f64) -> f64 {
+    pub fn density(&self, mu: f64) -> f64 {
         let a = self.normalised(mu);
         a * a
     }
 
-    fn sample_cosine(&self, u: f64) -> f64 {
+    /// Samples `mu` with density `2 pi rho(mu)` on `[-1, 1]` from one uniform variate `u` in
+    /// `[0, 1)`, exactly: `u` picks a pair `(m, n)` of lobes from the cumulative table of the
+    /// `s^2` masses, and its rescaled remainder inverts the CDF of `e^((gamma_m + gamma_n) mu)`.
+    #[inline]
+    pub fn sample_cosine(&self, u: f64) -> f64 {
         // Pick the pair (m, n) with probability w_mn, then reuse the remainder of u.
         let last = self.pair_cdf.len() - 1;
         let j = self.pair_cdf.partition_point(|&c| c <= u).min(last);
@@ -327,7 +285,10 @@ impl PhaseFunction for VmfMixture {
         sample_exponential_cosine(self.pair_exponent[j], v)
     }
 
-    fn mean_cosine(&self) -> f64 {
+    /// The mean cosine `g = int mu rho dOmega = sum_{m,n} w_mn A_3(gamma_m + gamma_n)`, in closed
+    /// form.
+    #[inline]
+    pub fn mean_cosine(&self) -> f64 {
         self.mean_cosine
     }
 }
@@ -336,6 +297,7 @@ impl PhaseFunction for VmfMixture {
 mod tests {
     use super::*;
     use crate::fit::gauss_legendre_8;
+    use std::f64::consts::PI;
 
     /// Composite 8-point Gauss-Legendre in `theta` on `panels` equal panels:
     /// `int f(cos theta) dOmega`.
@@ -352,67 +314,8 @@ mod tests {
         2.0 * PI * 0.5 * h * sum
     }
 
-    use speckle_phase::testing::{ks_distance as ks, uniform_stream};
-
-    /// The CDF of the cosine under `density`, by Gauss-Legendre quadrature in `theta`
-    /// (`P(cos theta <= mu)`, accumulated from `theta = pi`), exact to the quadrature error also
-    /// inside a panel.
-    struct NumericalCdf<'a> {
-        density: &'a dyn Fn(f64) -> f64,
-        h: f64,
-        /// `tail[p] = P(theta >= p h)`.
-        tail: Vec<f64>,
-    }
-
-    impl<'a> NumericalCdf<'a> {
-        fn new(density: &'a dyn Fn(f64) -> f64, panels: usize) -> Self {
-            let h = PI / panels as f64;
-            let mut tail = vec![0.0; panels + 1];
-            for p in (0..panels).rev() {
-                tail[p] = tail[p + 1] + Self::piece(density, p as f64 * h, (p + 1) as f64 * h);
-            }
-            Self { density, h, tail }
-        }
-
-        /// `2 pi int_a^b rho(cos theta) sin theta dtheta`.
-        fn piece(density: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
-            let (x, w) = gauss_legendre_8();
-            let mut s = 0.0;
-            for (xi, wi) in x.iter().zip(&w) {
-                let t = 0.5 * (a + b) + 0.5 * (b - a) * xi;
-                s += wi * density(t.cos()) * t.sin();
-            }
-            2.0 * PI * 0.5 * (b - a) * s
-        }
-
-        fn cdf(&self, mu: f64) -> f64 {
-            let theta = mu.clamp(-1.0, 1.0).acos();
-            let p = ((theta / self.h) as usize).min(self.tail.len() - 2);
-            let upper = (p + 1) as f64 * self.h;
-            let partial = Self::piece(self.density, theta, upper);
-            (self.tail[p + 1] + partial) / self.tail[0]
-        }
-    }
-
-    /// 0.1% critical value of `sqrt(n) D` (Kolmogorov distribution, large n): five fixed-seed
-    /// tests at 1% would fail by chance one time in twenty over seeds (the seed-17 stream gives
-    /// 1.92 for the first mixture, a 0.13% event; `ks_rejection_rate_is_nominal` checks that the
-    /// statistic is calibrated).
-    const KS_CRITICAL: f64 = 1.95;
-    const KS_SAMPLES: usize = 20_000;
-
-    fn ks_of(sampled: &VmfMixture, reference: &VmfMixture, seed: u64) -> f64 {
-        let density = |mu: f64| reference.density(mu);
-        let cdf = NumericalCdf::new(&density, 20_000);
-        ks_with(sampled, &cdf, seed, KS_SAMPLES)
-    }
-
-    fn ks_with(sampled: &VmfMixture, cdf: &NumericalCdf, seed: u64, n: usize) -> f64 {
-        let mut next = uniform_stream(seed);
-        let xs: Vec<f64> = (0..n).map(|_| sampled.sample_cosine(next())).collect();
-        ks(xs, |x| cdf.cdf(x))
-    }
-
+    /// The mixtures of the tests; the Kolmogorov-Smirnov tests of the sampler, in
+    /// `speckle-phase` (`vmf` module), use the same ones.
     fn mixtures() -> Vec<(&'static str, VmfMixture)> {
         vec![
             (
@@ -476,49 +379,16 @@ mod tests {
         let m = &mixtures()[0].1;
         let axis = DVec3::new(0.3, -0.4, 0.5).normalize();
         let lobes = m.lobes_about(axis);
-        for u in [[0.1, 0.2], [0.5, 0.9], [0.99, 0.3]] {
-            let w = speckle_phase::uniform_sphere(u);
+        for w in [
+            DVec3::new(0.2, 0.9, -0.1),
+            DVec3::new(-0.7, 0.1, 0.4),
+            DVec3::new(0.3, -0.4, 0.51),
+        ] {
+            let w = w.normalize();
             let sum: Complex64 = lobes.iter().map(|l| l.eval(w)).sum();
             let a = m.amplitude(axis.dot(w));
             assert!((sum - a).norm() < 1e-13 * a.norm());
         }
-    }
-
-    #[test]
-    fn sampler_passes_ks() {
-        for (i, (name, m)) in mixtures().into_iter().enumerate() {
-            let d = ks_of(&m, &m, 17 + i as u64);
-            println!("KS {name}: sqrt(n) D = {d:.3}");
-            assert!(d < KS_CRITICAL, "{name}: KS {d}");
-        }
-    }
-
-    #[test]
-    fn ks_rejection_rate_is_nominal() {
-        // Over 200 seeds the 5% critical value 1.36 must be exceeded about 10 times (binomial
-        // standard deviation 3.1): the sampler is exact and the statistic is calibrated.
-        let m = &mixtures()[0].1;
-        let density = |mu: f64| m.density(mu);
-        let cdf = NumericalCdf::new(&density, 20_000);
-        let rejected = (0..200u64)
-            .filter(|s| ks_with(m, &cdf, 1000 + 7919 * s, 5000) > 1.36)
-            .count();
-        assert!(
-            (2..=22).contains(&rejected),
-            "{rejected} of 200 rejected at 5%"
-        );
-    }
-
-    #[test]
-    fn ks_detects_a_wrong_mixture() {
-        // Negative control: 10% off in one concentration must be rejected.
-        let right = VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-4.0, 0.4)]).unwrap();
-        let wrong = VmfMixture::new(vec![(0.0, 0.3), (8.8, 1.0), (-4.0, 0.4)]).unwrap();
-        let d = ks_of(&right, &wrong, 17);
-        assert!(d > 2.0 * KS_CRITICAL, "KS {d}");
-        let wrong = VmfMixture::new(vec![(3300.0, 0.2), (40.0, 0.5), (0.5, 0.3)]).unwrap();
-        let d = ks_of(&mixtures()[1].1, &wrong, 18);
-        assert!(d > 2.0 * KS_CRITICAL, "KS {d}");
     }
 
     #[test]
@@ -586,29 +456,5 @@ mod tests {
         }
         let msg = VmfMixture::new(vec![(2.0, -1.0)]).unwrap_err().to_string();
         assert!(msg.contains("components[0].alpha"), "{msg}");
-    }
-
-    #[test]
-    fn tabulates_for_the_estimators() {
-        for (name, m) in mixtures() {
-            let n = m.recommended_angles();
-            let t = m.to_tabulated(n).unwrap();
-            assert!(
-                (t.mean_cosine() - m.mean_cosine()).abs() < 2e-4,
-                "{name}: n={n} table g {} vs {}",
-                t.mean_cosine(),
-                m.mean_cosine()
-            );
-            assert!(
-                (t.density(0.3) / m.density(0.3) - 1.0).abs() < 1e-3,
-                "{name}"
-            );
-        }
-        let m = &mixtures()[0].1;
-        assert!(matches!(
-            m.to_tabulated(1),
-            Err(VmfError::InvalidAngles { value: 1, .. })
-        ));
-        assert!(m.to_tabulated(2).is_ok());
     }
 }
