@@ -1,4 +1,18 @@
-//! Counter-based random streams (Philox4x32-10).
+//! Counter-based random streams (Philox4x32-10) and the one way every render derives them.
+//!
+//! # Stream layout (value-stable; a change is a breaking change, see `CHANGELOG.md`)
+//!
+//! Every random number of a render comes from [`PathRng::new`]`(key, stream)`:
+//!
+//! | render | key | stream |
+//! |---|---|---|
+//! | covariance, intensity, single scattering | `seed` | global path index `n` |
+//! | fields | `seed` | `r N + n` for path `n` of realization `r` (`N` paths each) |
+//! | wave solver | `seed` | configuration index `r` |
+//! | a sub-render `g` of a study (e.g. group `g` of a wavelength sweep) | [`derive_seed`]`(seed, g)` | as its estimator |
+//!
+//! Work is cut into batches that depend only on these counts, so a stream never depends on the
+//! thread (or, for sharded runs, the machine) that draws it.
 
 /// A random stream that is a pure function of `(seed, stream)`: Philox4x32-10 (Salmon et al.,
 /// "Parallel random numbers: as easy as 1, 2, 3", SC 2011) keyed by the seed, with the stream
@@ -46,6 +60,30 @@ pub(crate) fn philox4x32_10(mut c: [u32; 4], mut k: [u32; 2]) -> [u32; 4] {
         c = [hi1 ^ c[1] ^ k[0], lo1, hi0 ^ c[3] ^ k[1], lo0];
     }
     c
+}
+
+/// The SplitMix64 output function (Steele, Lea and Flood, *Fast splittable pseudorandom number
+/// generators*, OOPSLA 2014): a bijective 64-bit mixer.
+#[inline]
+pub fn splitmix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The key of sub-render `index` of a render seeded with `seed`: output `index + 1` of the
+/// SplitMix64 sequence seeded with `seed`, so that every sub-render (every group of every
+/// wavelength of a study, say) draws from its own Philox key, and nearby seeds or indices give
+/// unrelated keys.
+///
+/// ```
+/// use speckle_stats::rng::derive_seed;
+/// assert_ne!(derive_seed(1, 0), derive_seed(1, 1));
+/// assert_ne!(derive_seed(1, 0), derive_seed(2, 0));
+/// ```
+#[inline]
+pub fn derive_seed(seed: u64, index: u64) -> u64 {
+    splitmix64(seed.wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(index.wrapping_add(1))))
 }
 
 impl PathRng {
