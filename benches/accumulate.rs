@@ -1,5 +1,5 @@
 //! Criterion benchmarks of the covariance accumulation (issue 5): the Hermitian rank-`K` update
-//! of `speckle_estimators::BlockAccumulator` against the single-thread complex GEMM peak of faer
+//! of `speckle_estimators::HermitianBlock` against the single-thread complex GEMM peak of faer
 //! and against the rank-1 updates it replaced, and end-to-end covariance renders.
 //!
 //! Throughputs of the `gemm_peak`, `rank_k`, `rank_1`, `crossover` and `rank_k_depth` groups are
@@ -21,7 +21,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use faer::{Accum, Mat, Par};
 use num_complex::Complex64;
 use speckle::estimators::{Coherence, CovarianceOptions, NoProgress, render_covariance};
-use speckle::stats::{BLOCK_COLUMNS, BlockAccumulator, rank1_upper};
+use speckle::stats::{BLOCK_COLUMNS, HermitianBlock, rank1_upper};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -98,7 +98,7 @@ fn accumulation(c: &mut Criterion) {
         for j in [64, 256, 1024] {
             let v = vectors(j, PUSHED);
             let mut m = vec![Complex64::ZERO; j * j];
-            let mut acc = BlockAccumulator::new(j, BLOCK_COLUMNS);
+            let mut acc = HermitianBlock::new(j, BLOCK_COLUMNS);
             let mut conj = vec![Complex64::ZERO; j];
             g.throughput(Throughput::Elements(triangle_flops(j, PUSHED)));
             g.bench_function(BenchmarkId::from_parameter(format!("J={j}")), |b| {
@@ -126,7 +126,7 @@ fn crossover(c: &mut Criterion) {
     for j in [2, 4, 8, 16, 32] {
         let v = vectors(j, PUSHED);
         let mut m = vec![Complex64::ZERO; j * j];
-        let mut acc = BlockAccumulator::new(j, BLOCK_COLUMNS);
+        let mut acc = HermitianBlock::new(j, BLOCK_COLUMNS);
         let mut conj = vec![Complex64::ZERO; j];
         g.throughput(Throughput::Elements(triangle_flops(j, PUSHED)));
         g.bench_function(BenchmarkId::new("rank_k", format!("J={j}")), |b| {
@@ -160,7 +160,7 @@ fn depth(c: &mut Criterion) {
             let n = 16 * k;
             let v = vectors(j, n);
             let mut m = vec![Complex64::ZERO; j * j];
-            let mut acc = BlockAccumulator::new(j, k);
+            let mut acc = HermitianBlock::new(j, k);
             g.throughput(Throughput::Elements(triangle_flops(j, n)));
             g.bench_function(BenchmarkId::from_parameter(format!("J={j}/K={k}")), |b| {
                 b.iter(|| {

@@ -1,288 +1,21 @@
-//! Sources, sensors and their connections to a point in the medium (Eqs. 13, 19, 24-25): one
-//! at a time ([`Source::leg`], [`Sensor::leg`]), or to a whole list at once with the vectorised
-//! kernels of [`Endpoints`].
+//! Connections of a medium point to a whole list of sources or sensors at once (Eqs. 24-25),
+//! vectorised per run of endpoints of one kind, and the scattering connections
+//! `Upsilon(x, w)` the estimators build on them.
 
-use crate::{EndpointError, fastmath};
+use crate::{Kind, Leg, Sensor, Side, Source, plane, point};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_medium::{Dimension, Medium, field_attenuation};
-
-/// An illumination.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Source {
-    /// A plane wave `exp(i k d . x)` propagating along the unit vector `direction`.
-    PlaneWave {
-        /// Propagation direction (unit).
-        direction: DVec3,
-    },
-    /// An isotropic point source `exp(i k |x - p|) / |x - p|` at `position` (in flatland,
-    /// `exp(i k |x - p|) / sqrt(|x - p|)`, the far-zone form of a Hankel-function source).
-    Point {
-        /// Position of the source.
-        position: DVec3,
-    },
-}
-
-/// A sensor.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Sensor {
-    /// The far-field amplitude `A(v)` in the unit direction `direction`, defined by
-    /// `u(R v) = A(v) exp(i k R) / R` as `R -> infinity` (`notes/conventions.md`); in flatland
-    /// `u(R v) = A(v) exp(i k R) / sqrt(R)`.
-    FarField {
-        /// Viewing direction (unit), pointing from the medium to the sensor.
-        direction: DVec3,
-    },
-    /// The field value at `position`.
-    Point {
-        /// Position of the sensor.
-        position: DVec3,
-    },
-}
-
-/// Geometric spreading of a spherical (3D, `1 / r`) or cylindrical (flatland, `1 / sqrt(r)`)
-/// wave over the distance `r`.
-#[inline]
-pub(crate) fn spreading(dimension: Dimension, r: f64) -> f64 {
-    match dimension {
-        Dimension::Three => 1.0 / r,
-        Dimension::Two => 1.0 / r.sqrt(),
-    }
-}
-
-fn in_plane(field: &'static str, v: DVec3, dimension: Dimension) -> Result<(), EndpointError> {
-    if dimension == Dimension::Two && v.z != 0.0 {
-        return Err(EndpointError::InvalidInput {
-            field: field.into(),
-            reason: format!("{v} must have z = 0 in a flatland scene"),
-        });
-    }
-    Ok(())
-}
-
-fn unit(field: &'static str, v: DVec3) -> Result<DVec3, EndpointError> {
-    let len = v.length();
-    if v.is_finite() && len > 0.0 && len.is_finite() {
-        Ok(v / len)
-    } else {
-        Err(EndpointError::InvalidInput {
-            field: field.into(),
-            reason: format!("direction {v} must be finite and non-zero"),
-        })
-    }
-}
-
-fn point<M: Medium>(field: &'static str, p: DVec3, m: &M) -> Result<DVec3, EndpointError> {
-    in_plane(field, p, m.dimension())?;
-    if !p.is_finite() {
-        return Err(EndpointError::InvalidInput {
-            field: field.into(),
-            reason: format!("position {p} must be finite"),
-        });
-    }
-    if m.bounds().contains(p) {
-        return Err(EndpointError::InvalidInput {
-            field: field.into(),
-            reason: format!(
-                "position {p} lies in or on the medium; point endpoints must be outside it (next to \
-                 the endpoint the 1/r^2 connection gives the estimator infinite variance)"
-            ),
-        });
-    }
-    Ok(p)
-}
-
-impl Source {
-    /// A plane wave along `direction` (normalised; rejects zero or non-finite vectors).
-    pub fn plane_wave(direction: DVec3) -> Result<Self, EndpointError> {
-        Ok(Self::PlaneWave {
-            direction: unit("source.direction", direction)?,
-        })
-    }
-
-    /// Checks the source against a medium: directions unit, points outside the medium, and both
-    /// in the plane `z = 0` in flatland.
-    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
-        Ok(match self {
-            Self::PlaneWave { direction } => Self::PlaneWave {
-                direction: {
-                    in_plane("source.direction", direction, m.dimension())?;
-                    unit("source.direction", direction)?
-                },
-            },
-            Self::Point { position } => Self::Point {
-                position: point("source.position", position, m)?,
-            },
-        })
-    }
-
-    /// The source with far-field direction negated, as a sensor (for reciprocity).
-    pub fn reciprocal(&self) -> Sensor {
-        match *self {
-            Self::PlaneWave { direction } => Sensor::FarField {
-                direction: -direction,
-            },
-            Self::Point { position } => Sensor::Point { position },
-        }
-    }
-
-    /// The incoming leg at `x`: `upsilon(i -> x) = tau xi` and the propagation direction at `x`.
-    #[inline]
-    pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
-        match *self {
-            Self::PlaneWave { direction } => {
-                // xi(i -> x) = exp(i k i.x); the wave crossed the medium from the boundary along i.
-                let att = field_attenuation(m.optical_depth_to_infinity(x, -direction));
-                Leg {
-                    amp: Complex64::from_polar(att, k * direction.dot(x)),
-                    dir: direction,
-                }
-            }
-            Self::Point { position } => {
-                let d = x - position;
-                let r = d.length();
-                let att = field_attenuation(m.optical_depth(position, x));
-                Leg {
-                    amp: Complex64::from_polar(att * spreading(m.dimension(), r), k * r),
-                    dir: d / r,
-                }
-            }
-        }
-    }
-}
-
-impl Sensor {
-    /// A far-field sensor along `direction` (normalised; rejects zero or non-finite vectors).
-    pub fn far_field(direction: DVec3) -> Result<Self, EndpointError> {
-        Ok(Self::FarField {
-            direction: unit("sensor.direction", direction)?,
-        })
-    }
-
-    /// Checks the sensor against a medium: directions unit, points outside the medium, and both
-    /// in the plane `z = 0` in flatland.
-    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
-        Ok(match self {
-            Self::FarField { direction } => Self::FarField {
-                direction: {
-                    in_plane("sensor.direction", direction, m.dimension())?;
-                    unit("sensor.direction", direction)?
-                },
-            },
-            Self::Point { position } => Self::Point {
-                position: point("sensor.position", position, m)?,
-            },
-        })
-    }
-
-    /// The sensor with far-field direction negated, as a source (for reciprocity).
-    pub fn reciprocal(&self) -> Source {
-        match *self {
-            Self::FarField { direction } => Source::PlaneWave {
-                direction: -direction,
-            },
-            Self::Point { position } => Source::Point { position },
-        }
-    }
-
-    /// The outgoing leg from `x`: `upsilon(x -> v) = tau xi` and the unit direction leaving `x`.
-    #[inline]
-    pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
-        match *self {
-            Self::FarField { direction } => {
-                // xi(x -> v) = exp(-i k v.x), attenuated from x to the boundary along v.
-                let att = field_attenuation(m.optical_depth_to_infinity(x, direction));
-                Leg {
-                    amp: Complex64::from_polar(att, -k * direction.dot(x)),
-                    dir: direction,
-                }
-            }
-            Self::Point { position } => {
-                let d = position - x;
-                let r = d.length();
-                let att = field_attenuation(m.optical_depth(x, position));
-                Leg {
-                    amp: Complex64::from_polar(att * spreading(m.dimension(), r), k * r),
-                    dir: d / r,
-                }
-            }
-        }
-    }
-}
-
-/// One connection between an endpoint and a point in the medium.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Leg {
-    /// Complex volumetric throughput `tau * xi` of the segment.
-    pub amp: Complex64,
-    /// Unit propagation direction of the segment at the medium point (into it for a source,
-    /// out of it for a sensor).
-    pub dir: DVec3,
-}
-
-/// One (source, sensor) pair, the index set of covariance entries and field pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Pair {
-    /// Index into the scene's sources.
-    pub source: usize,
-    /// Index into the scene's sensors.
-    pub sensor: usize,
-}
-
-impl Pair {
-    /// Every (source, sensor) combination, source-major: entry `j = source * n_sensors + sensor`,
-    /// so a field vector reshapes to `(n_sources, n_sensors)`.
-    pub fn all(n_sources: usize, n_sensors: usize) -> Vec<Pair> {
-        (0..n_sources)
-            .flat_map(|source| (0..n_sensors).map(move |sensor| Pair { source, sensor }))
-            .collect()
-    }
-}
-
-/// A source or a sensor, the two sides of a path.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Endpoint {
-    Source(Source),
-    Sensor(Sensor),
-}
-
-impl Endpoint {
-    #[inline]
-    fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
-        match self {
-            Self::Source(s) => s.leg(m, k, x),
-            Self::Sensor(v) => v.leg(m, k, x),
-        }
-    }
-
-    /// For a plane wave or a far-field sensor: the leg direction, the direction along which the
-    /// leg leaves the medium from `x`, and the vector `kappa` of the phase `kappa . x`.
-    fn directional(&self, k: f64) -> Option<(DVec3, DVec3, DVec3)> {
-        match *self {
-            Self::Source(Source::PlaneWave { direction: i }) => Some((i, -i, k * i)),
-            Self::Sensor(Sensor::FarField { direction: v }) => Some((v, v, -k * v)),
-            _ => None,
-        }
-    }
-
-    fn position(&self) -> Option<DVec3> {
-        match *self {
-            Self::Source(Source::Point { position }) | Self::Sensor(Sensor::Point { position }) => {
-                Some(position)
-            }
-            _ => None,
-        }
-    }
-}
+use speckle_medium::{Dimension, Medium};
+use speckle_phase::PhaseFunction;
 
 /// The medium as the fast kernels see it: extinction `sigma_t` inside its bounding box, vacuum
 /// outside.
 #[derive(Debug, Clone, Copy)]
-struct BoxMedium {
-    center: DVec3,
-    half: DVec3,
+pub(crate) struct BoxMedium {
+    pub(crate) center: DVec3,
+    pub(crate) half: DVec3,
     /// `sigma_t / 2`: the field attenuates as `exp(-sigma_t d / 2)`.
-    half_sigma_t: f64,
+    pub(crate) half_sigma_t: f64,
 }
 
 impl BoxMedium {
@@ -321,12 +54,12 @@ impl BoxMedium {
     }
 
     /// `-sigma_t / 2` times the distance from `x` (inside the box) to its boundary along `e`
-    /// (scalar form of the far-field kernel, for the probes).
+    /// (scalar form of the directional kernel, for the probes).
     fn far_exponent(&self, x: DVec3, e: DVec3) -> f64 {
         let c = self.center - x;
         (0..3)
             .map(|a| {
-                let (q, r) = far_coefficients(e[a], self.half[a], self.half_sigma_t);
+                let (q, r) = plane::far_coefficients(e[a], self.half[a], self.half_sigma_t);
                 c[a] * q + r
             })
             .fold(f64::NEG_INFINITY, f64::max)
@@ -335,7 +68,7 @@ impl BoxMedium {
 
     /// The fraction of the segment from `x` (inside the box) to `x + w` that lies inside.
     #[inline(always)]
-    fn chord_fraction(&self, x: DVec3, w: DVec3) -> f64 {
+    pub(crate) fn chord_fraction(&self, x: DVec3, w: DVec3) -> f64 {
         let c = self.center - x;
         let mut s = 1.0;
         for a in 0..3 {
@@ -348,38 +81,35 @@ impl BoxMedium {
     }
 }
 
-/// Coefficients `(q, r)` of one axis of the far-field attenuation exponent: for a unit exit
-/// direction with component `e`, the distance from `x` to the face it heads for is
-/// `t = (c + h sgn e) / e` (`c = center - x`, `h` the half size), so `-sigma_t t / 2 = c q + r`
-/// with `q = -sigma_t / (2 e)` and `r = -sigma_t h / (2 |e|)`; an axis with `e = 0` never exits:
-/// `q = 0`, `r = -inf`.
-fn far_coefficients(e: f64, h: f64, half_sigma_t: f64) -> (f64, f64) {
-    if e == 0.0 {
-        (0.0, f64::NEG_INFINITY)
-    } else {
-        (-half_sigma_t / e, -half_sigma_t * h / e.abs())
+/// The prepared structure-of-arrays data of a run of endpoints of one kind.
+#[derive(Debug, Clone)]
+enum RunKind {
+    Plane(plane::Run),
+    Point(point::Run),
+}
+
+impl RunKind {
+    /// An empty run of the kind of `k`.
+    fn of(k: &Kind) -> Self {
+        match k {
+            Kind::Plane(_) => Self::Plane(plane::Run::default()),
+            Kind::Point(_) => Self::Point(point::Run::default()),
+        }
+    }
+
+    /// Appends `k` (of this run's kind).
+    fn push(&mut self, g: &BoxMedium, wavenumber: f64, k: &Kind) {
+        match (self, *k) {
+            (Self::Plane(run), Kind::Plane(d)) => run.push(g, wavenumber, d),
+            (Self::Point(run), Kind::Point(p)) => run.push(p),
+            _ => unreachable!("runs hold endpoints of one kind"),
+        }
     }
 }
 
-/// Directional endpoints (plane waves, far-field sensors), structure of arrays: the phase is
-/// `kx x + ky y + kz z`, the attenuation exponent `max_a (c_a q_a + r_a)`.
-#[derive(Debug, Clone, Default)]
-struct FarRun {
-    k: [Vec<f64>; 3],
-    q: [Vec<f64>; 3],
-    r: [Vec<f64>; 3],
-}
-
-/// Point endpoints, structure of arrays of their positions.
-#[derive(Debug, Clone, Default)]
-struct PointRun {
-    p: [Vec<f64>; 3],
-}
-
-#[derive(Debug, Clone)]
-enum RunKind {
-    Far(FarRun),
-    Point(PointRun),
+/// Whether two endpoints share a kind (and so a run).
+fn same_kind(a: &Kind, b: &Kind) -> bool {
+    std::mem::discriminant(a) == std::mem::discriminant(b)
 }
 
 /// A maximal range of endpoints of one kind.
@@ -408,7 +138,7 @@ static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new
 /// those of [`crate::fastmath`] (1 and 2 ulp from the standard library).
 ///
 /// ```
-/// use speckle_estimators::{Sensor, fastmath::Endpoints};
+/// use speckle_endpoints::{Endpoints, Sensor};
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 /// let m = HomogeneousBox::new(Aabb::centered(DVec3::ZERO, DVec3::splat(2.0)).unwrap(), 1.0, 0.0)
 ///     .unwrap();
@@ -430,11 +160,11 @@ static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new
 pub struct Endpoints<'m, M> {
     medium: &'m M,
     k: f64,
-    ends: Vec<Endpoint>,
+    /// The endpoints in source form.
+    ends: Vec<Kind>,
     geometry: Option<BoxMedium>,
     three: bool,
-    /// `+1` for sensors (legs leave `x` towards a point sensor), `-1` for sources.
-    side: f64,
+    side: Side,
     runs: Vec<Run>,
     id: u64,
 }
@@ -443,9 +173,9 @@ pub struct Endpoints<'m, M> {
 /// arrays: complex throughputs `tau xi` ([`Leg::amp`]) and unit directions ([`Leg::dir`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Legs {
-    pub(crate) re: Vec<f64>,
-    pub(crate) im: Vec<f64>,
-    pub(crate) dir: [Vec<f64>; 3],
+    re: Vec<f64>,
+    im: Vec<f64>,
+    dir: [Vec<f64>; 3],
     owner: u64,
 }
 
@@ -496,55 +226,40 @@ impl Legs {
 impl<'m, M: Medium> Endpoints<'m, M> {
     /// The sources `sources` in `medium` at wavenumber `k`.
     pub fn sources(medium: &'m M, k: f64, sources: &[Source]) -> Self {
-        let ends = sources.iter().map(|&s| Endpoint::Source(s)).collect();
-        Self::new(medium, k, ends, -1.0)
+        Self::new(
+            medium,
+            k,
+            sources.iter().map(Source::kind).collect(),
+            Side::Source,
+        )
     }
 
     /// The sensors `sensors` in `medium` at wavenumber `k`.
     pub fn sensors(medium: &'m M, k: f64, sensors: &[Sensor]) -> Self {
-        let ends = sensors.iter().map(|&s| Endpoint::Sensor(s)).collect();
-        Self::new(medium, k, ends, 1.0)
+        Self::new(
+            medium,
+            k,
+            sensors.iter().map(Sensor::kind).collect(),
+            Side::Sensor,
+        )
     }
 
-    fn new(medium: &'m M, k: f64, ends: Vec<Endpoint>, side: f64) -> Self {
+    fn new(medium: &'m M, k: f64, ends: Vec<Kind>, side: Side) -> Self {
         let geometry = BoxMedium::of(medium);
         let mut runs: Vec<Run> = vec![];
         if let Some(g) = geometry {
             for (i, e) in ends.iter().enumerate() {
-                let far = e.directional(k).is_some();
-                let same = runs
-                    .last()
-                    .is_some_and(|r| matches!(r.kind, RunKind::Far(_)) == far);
+                let same = i > 0 && same_kind(&ends[i - 1], e);
                 if !same {
-                    let kind = if far {
-                        RunKind::Far(FarRun::default())
-                    } else {
-                        RunKind::Point(PointRun::default())
-                    };
                     runs.push(Run {
                         start: i,
                         len: 0,
-                        kind,
+                        kind: RunKind::of(e),
                     });
                 }
                 let run = runs.last_mut().expect("a run was pushed");
                 run.len += 1;
-                match (&mut run.kind, e.directional(k), e.position()) {
-                    (RunKind::Far(f), Some((_, exit, kappa)), _) => {
-                        for a in 0..3 {
-                            let (q, r) = far_coefficients(exit[a], g.half[a], g.half_sigma_t);
-                            f.k[a].push(kappa[a]);
-                            f.q[a].push(q);
-                            f.r[a].push(r);
-                        }
-                    }
-                    (RunKind::Point(p), None, Some(pos)) => {
-                        for a in 0..3 {
-                            p.p[a].push(pos[a]);
-                        }
-                    }
-                    _ => unreachable!("runs hold endpoints of one kind"),
-                }
+                run.kind.push(&g, k, e);
             }
         }
         Self {
@@ -572,7 +287,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     /// Whether every endpoint is a plane wave or a far-field sensor (their leg directions do
     /// not depend on the medium point).
     pub fn all_directional(&self) -> bool {
-        self.ends.iter().all(|e| e.directional(self.k).is_some())
+        self.ends.iter().all(|e| matches!(e, Kind::Plane(_)))
     }
 
     /// A buffer for [`Endpoints::connect`] of this set (the constant directions of plane waves
@@ -586,7 +301,8 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             owner: self.id,
         };
         for (i, e) in self.ends.iter().enumerate() {
-            if let Some((d, _, _)) = e.directional(self.k) {
+            if let Kind::Plane(d) = *e {
+                let d = self.side.direction(d);
                 for a in 0..3 {
                     legs.dir[a][i] = d[a];
                 }
@@ -605,13 +321,8 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     pub fn connect(&self, x: DVec3, legs: &mut Legs) {
         assert_eq!(legs.owner, self.id, "legs of another endpoint set");
         let Some(g) = self.geometry else {
-            for (i, e) in self.ends.iter().enumerate() {
-                let leg = e.leg(self.medium, self.k, x);
-                legs.re[i] = leg.amp.re;
-                legs.im[i] = leg.amp.im;
-                for a in 0..3 {
-                    legs.dir[a][i] = leg.dir[a];
-                }
+            for i in 0..self.ends.len() {
+                self.scalar_leg(i, x, legs);
             }
             return;
         };
@@ -619,11 +330,15 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             self.medium.bounds().contains(x),
             "{x} is outside the medium"
         );
+        let sign = match self.side {
+            Side::Source => -1.0,
+            Side::Sensor => 1.0,
+        };
         for run in &self.runs {
             let range = run.start..run.start + run.len;
             let (re, im) = (&mut legs.re[range.clone()], &mut legs.im[range.clone()]);
             let in_range = match &run.kind {
-                RunKind::Far(f) => far_legs(&g, f, x, re, im),
+                RunKind::Plane(f) => f.connect(&g, x, re, im),
                 RunKind::Point(p) => {
                     let [dx, dy, dz] = &mut legs.dir;
                     let dir = [
@@ -632,9 +347,9 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                         &mut dz[range],
                     ];
                     if self.three {
-                        point_legs::<true>(&g, p, self.k, self.side, x, re, im, dir)
+                        p.connect::<true>(&g, self.k, sign, x, re, im, dir)
                     } else {
-                        point_legs::<false>(&g, p, self.k, self.side, x, re, im, dir)
+                        p.connect::<false>(&g, self.k, sign, x, re, im, dir)
                     }
                 }
             };
@@ -642,87 +357,48 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                 // A phase beyond the sin_cos kernel's range (|k L| > 2^23): redo the run with
                 // the standard library.
                 for i in run.start..run.start + run.len {
-                    let leg = self.ends[i].leg(self.medium, self.k, x);
+                    let leg = self.ends[i].leg(self.medium, self.k, x, self.side);
                     legs.re[i] = leg.amp.re;
                     legs.im[i] = leg.amp.im;
                 }
             }
         }
     }
-}
 
-/// The far-field kernel: `re + i im = exp(max_a(c_a q_a + r_a)) exp(i kappa . x)`. Returns
-/// false if a phase was out of the range of the vectorised `sin_cos`.
-#[inline(never)]
-fn far_legs(g: &BoxMedium, f: &FarRun, x: DVec3, re: &mut [f64], im: &mut [f64]) -> bool {
-    let n = re.len();
-    let c = g.center - x;
-    let (kx, ky, kz) = (&f.k[0][..n], &f.k[1][..n], &f.k[2][..n]);
-    let (qx, qy, qz) = (&f.q[0][..n], &f.q[1][..n], &f.q[2][..n]);
-    let (rx, ry, rz) = (&f.r[0][..n], &f.r[1][..n], &f.r[2][..n]);
-    let im = &mut im[..n];
-    let mut in_range = true;
-    for i in 0..n {
-        // Attenuation exponent -sigma_t t / 2 (t: distance to the boundary, Eq. 24).
-        let ex = c.x * qx[i] + rx[i];
-        let ey = c.y * qy[i] + ry[i];
-        let ez = c.z * qz[i] + rz[i];
-        let e = if ex > ey { ex } else { ey };
-        let e = if ez > e { ez } else { e };
-        let e = if e > 0.0 { 0.0 } else { e };
-        // Phase: k i.x for a plane wave, -k v.x for a far-field sensor (Eqs. 19, 25).
-        let phase = kx[i] * x.x + ky[i] * x.y + kz[i] * x.z;
-        let att = fastmath::exp(e);
-        let (s, co) = fastmath::sin_cos_reduced(phase);
-        in_range &= fastmath::in_sin_cos_range(phase);
-        re[i] = att * co;
-        im[i] = att * s;
+    /// Leg `i` at `x` by the scalar (medium-calling) route.
+    fn scalar_leg(&self, i: usize, x: DVec3, legs: &mut Legs) {
+        let leg = self.ends[i].leg(self.medium, self.k, x, self.side);
+        legs.re[i] = leg.amp.re;
+        legs.im[i] = leg.amp.im;
+        for a in 0..3 {
+            legs.dir[a][i] = leg.dir[a];
+        }
     }
-    in_range
-}
 
-/// The point-endpoint kernel: distance `r`, direction, chord through the box, and
-/// `exp(-sigma_t L / 2) spreading(r) exp(i k r)` (Eq. 13 with `1/r`, or `1/sqrt(r)` in
-/// flatland). `side` is `+1` for sensors (direction `p - x`), `-1` for sources (`x - p`).
-/// Returns false if a phase was out of the range of the vectorised `sin_cos`.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn point_legs<const THREE: bool>(
-    g: &BoxMedium,
-    p: &PointRun,
-    k: f64,
-    side: f64,
-    x: DVec3,
-    re: &mut [f64],
-    im: &mut [f64],
-    dir: [&mut [f64]; 3],
-) -> bool {
-    let n = re.len();
-    let (px, py, pz) = (&p.p[0][..n], &p.p[1][..n], &p.p[2][..n]);
-    let im = &mut im[..n];
-    let [dx, dy, dz] = dir;
-    let (dx, dy, dz) = (&mut dx[..n], &mut dy[..n], &mut dz[..n]);
-    let mut in_range = true;
-    for i in 0..n {
-        // w = p - x; for a sensor the leg runs along w, for a source along -w. Both cross the
-        // same chord of the box, from x to where the segment leaves it.
-        let w = DVec3::new(px[i] - x.x, py[i] - x.y, pz[i] - x.z);
-        let r = (w.x * w.x + w.y * w.y + w.z * w.z).sqrt();
-        let inv = 1.0 / r;
-        let unit = side * inv;
-        let depth_half = g.half_sigma_t * g.chord_fraction(x, w) * r;
-        let spread = if THREE { inv } else { inv.sqrt() };
-        let att = fastmath::exp(-depth_half) * spread;
-        let phase = k * r;
-        let (s, co) = fastmath::sin_cos_reduced(phase);
-        in_range &= fastmath::in_sin_cos_range(phase);
-        re[i] = att * co;
-        im[i] = att * s;
-        dx[i] = w.x * unit;
-        dy[i] = w.y * unit;
-        dz[i] = w.z * unit;
+    /// The scattering connections `Upsilon(x, w)` of every endpoint at the point whose `legs`
+    /// were just [`connect`](Self::connect)ed: `out_i = amp_i s(dirs(dir_i))`, where `dirs` maps
+    /// the leg direction to the (incoming, outgoing) directions of the scattering at `x` (for a
+    /// source leg arriving along `d` and leaving along the path direction `w`: `(d, w)`; for a
+    /// sensor leg leaving along `d`, reached along the path direction `w`: `(w, d)`). Writes
+    /// `out_re`, `out_im` (at least `len()` long).
+    #[inline]
+    pub fn scatter<P: PhaseFunction>(
+        &self,
+        legs: &Legs,
+        phase: &P,
+        dirs: impl Fn(DVec3) -> (DVec3, DVec3),
+        out_re: &mut [f64],
+        out_im: &mut [f64],
+    ) {
+        let n = legs.len();
+        let (re, im) = (&mut out_re[..n], &mut out_im[..n]);
+        for i in 0..n {
+            let (w_in, w_out) = dirs(legs.dir(i));
+            let x = legs.amp(i) * phase.amplitude_between(w_in, w_out);
+            re[i] = x.re;
+            im[i] = x.im;
+        }
     }
-    in_range
 }
 
 #[cfg(test)]

@@ -1,21 +1,57 @@
 //! Sources and sensors of speckle renders (Bar et al. 2019, Eqs. 13, 19, 20, 24-25): their
 //! kinds, validation against a medium, reciprocity, connections to points of the medium (one at a
-//! time or vectorised over a whole list) and the mean field of a (source, sensor) pair.
+//! time or vectorised over a whole list), the mean field of a (source, sensor) pair and, for the
+//! exact wave solver, their vacuum fields.
 //!
 //! All values are in the absolute units of `docs/conventions.md`: a plane wave has unit
 //! amplitude, a point source is `e^{ikr}/r`, a far-field sensor reports the scattering amplitude
 //! `A(v)` of `u(R v) = A(v) e^{ikR}/R`, a point sensor the field value; in flatland, `1/sqrt(r)`
 //! replaces `1/r`.
+//!
+//! # Design: kinds, sides and the extension point
+//!
+//! An endpoint is a *kind* seen from a *side*. Each kind lives in one module that holds
+//! everything about it: validation, the scalar leg, the vectorised kernel over a run of
+//! endpoints of the kind, its vacuum field (for the wave solver) and its part of the mean field:
+//!
+//! - [`plane`](crate::plane): directional endpoints, the plane-wave source and its reciprocal,
+//!   the far-field sensor;
+//! - [`point`](crate::point): the point source and its reciprocal, the point sensor.
+//!
+//! A sensor is written in *source form*, as the source of the field it reads by reciprocity
+//! (the far-field sensor `v` is the plane wave along `-v`; the point sensor at `q` the point
+//! source at `q`), so every kernel is written once; [`Side`] only decides which way a leg's
+//! direction points. The closed enums [`Source`] and [`Sensor`] give static dispatch in the
+//! hot loop and the user-facing vocabulary; [`Endpoints`] cuts a list into runs of one kind and
+//! calls each kind's kernel on its run.
+//!
+//! The estimators use a connection `Upsilon(x, w)`: the throughput from an endpoint to the
+//! vertex `x` times the scattering amplitude into (sources) or out of (sensors) the adjacent path
+//! direction `w`. For the kinds here, whose legs have one direction, it is `amp s(dir -> w)`
+//! ([`Endpoints::scatter`]); a kind without a single leg direction (a focused beam integrating
+//! over an aperture) supplies its own.
+//!
+//! Adding a kind touches its new module, the variants and dispatch arms in this file and
+//! `kernels.rs`, the pair cases of `mean.rs` and `free_space.rs`, and the scene schema
+//! (`speckle-scene`); nothing in the estimators or the wave solver.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 pub mod fastmath;
+mod free_space;
 mod kernels;
 mod mean;
+mod plane;
+mod point;
 
-pub use kernels::{Endpoints, Leg, Legs, Pair, Sensor, Source};
+pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
+pub use kernels::{Endpoints, Legs};
 pub use mean::mean_field;
+
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_medium::Medium;
 
 /// Errors of endpoint construction and validation.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -28,4 +64,252 @@ pub enum EndpointError {
         /// What is wrong with it.
         reason: String,
     },
+}
+
+/// An illumination.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Source {
+    /// A plane wave `exp(i k d . x)` propagating along the unit vector `direction`.
+    PlaneWave {
+        /// Propagation direction (unit).
+        direction: DVec3,
+    },
+    /// An isotropic point source `exp(i k |x - p|) / |x - p|` at `position` (in flatland,
+    /// `exp(i k |x - p|) / sqrt(|x - p|)`, the far-zone form of a Hankel-function source).
+    Point {
+        /// Position of the source.
+        position: DVec3,
+    },
+}
+
+/// A sensor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sensor {
+    /// The far-field amplitude `A(v)` in the unit direction `direction`, defined by
+    /// `u(R v) = A(v) exp(i k R) / R` as `R -> infinity` (`docs/conventions.md`); in flatland
+    /// `u(R v) = A(v) exp(i k R) / sqrt(R)`.
+    FarField {
+        /// Viewing direction (unit), pointing from the medium to the sensor.
+        direction: DVec3,
+    },
+    /// The field value at `position`.
+    Point {
+        /// Position of the sensor.
+        position: DVec3,
+    },
+}
+
+/// The two sides of a path: which way a leg's direction points at the medium point (into it
+/// from a source, out of it towards a sensor).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// A source: the leg arrives at the medium point.
+    Source,
+    /// A sensor: the leg leaves the medium point.
+    Sensor,
+}
+
+impl Side {
+    /// The leg direction at the medium point of an endpoint whose source-form propagation
+    /// direction there is `d`.
+    #[inline]
+    pub(crate) fn direction(self, d: DVec3) -> DVec3 {
+        match self {
+            Self::Source => d,
+            Self::Sensor => -d,
+        }
+    }
+}
+
+/// An endpoint in source form (see the crate docs): the kind and its parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Kind {
+    /// A directional endpoint of propagation direction `d`.
+    Plane(DVec3),
+    /// A point endpoint.
+    Point(DVec3),
+}
+
+impl Source {
+    /// A plane wave along `direction` (normalised; rejects zero or non-finite vectors).
+    pub fn plane_wave(direction: DVec3) -> Result<Self, EndpointError> {
+        Ok(Self::PlaneWave {
+            direction: check::unit("source.direction", direction)?,
+        })
+    }
+
+    /// A point source at `position` (checked against a medium by [`Source::validated`]).
+    pub fn point(position: DVec3) -> Self {
+        Self::Point { position }
+    }
+
+    /// Checks the source against a medium: directions unit, points outside the medium, and both
+    /// in the plane `z = 0` in flatland.
+    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
+        Ok(match self {
+            Self::PlaneWave { direction } => Self::PlaneWave {
+                direction: plane::validated("source.direction", direction, m)?,
+            },
+            Self::Point { position } => Self::Point {
+                position: point::validated("source.position", position, m)?,
+            },
+        })
+    }
+
+    /// The source with far-field direction negated, as a sensor (for reciprocity).
+    pub fn reciprocal(&self) -> Sensor {
+        match *self {
+            Self::PlaneWave { direction } => Sensor::FarField {
+                direction: -direction,
+            },
+            Self::Point { position } => Sensor::Point { position },
+        }
+    }
+
+    /// The source form of the source: itself.
+    #[inline]
+    pub(crate) fn kind(&self) -> Kind {
+        match *self {
+            Self::PlaneWave { direction } => Kind::Plane(direction),
+            Self::Point { position } => Kind::Point(position),
+        }
+    }
+
+    /// The incoming leg at `x`: `upsilon(i -> x) = tau xi` and the propagation direction at `x`.
+    #[inline]
+    pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
+        self.kind().leg(m, k, x, Side::Source)
+    }
+}
+
+impl Sensor {
+    /// A far-field sensor along `direction` (normalised; rejects zero or non-finite vectors).
+    pub fn far_field(direction: DVec3) -> Result<Self, EndpointError> {
+        Ok(Self::FarField {
+            direction: check::unit("sensor.direction", direction)?,
+        })
+    }
+
+    /// A point sensor at `position` (checked against a medium by [`Sensor::validated`]).
+    pub fn point(position: DVec3) -> Self {
+        Self::Point { position }
+    }
+
+    /// Checks the sensor against a medium: directions unit, points outside the medium, and both
+    /// in the plane `z = 0` in flatland.
+    pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
+        Ok(match self {
+            Self::FarField { direction } => Self::FarField {
+                direction: plane::validated("sensor.direction", direction, m)?,
+            },
+            Self::Point { position } => Self::Point {
+                position: point::validated("sensor.position", position, m)?,
+            },
+        })
+    }
+
+    /// The sensor with far-field direction negated, as a source (for reciprocity).
+    pub fn reciprocal(&self) -> Source {
+        match *self {
+            Self::FarField { direction } => Source::PlaneWave {
+                direction: -direction,
+            },
+            Self::Point { position } => Source::Point { position },
+        }
+    }
+
+    /// The source form of the sensor: the source whose field it reads by reciprocity.
+    #[inline]
+    pub(crate) fn kind(&self) -> Kind {
+        self.reciprocal().kind()
+    }
+
+    /// The outgoing leg from `x`: `upsilon(x -> v) = tau xi` and the unit direction leaving `x`.
+    #[inline]
+    pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
+        self.kind().leg(m, k, x, Side::Sensor)
+    }
+}
+
+impl Kind {
+    /// The leg at `x` seen from `side`.
+    #[inline]
+    pub(crate) fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3, side: Side) -> Leg {
+        match *self {
+            Self::Plane(d) => plane::leg(m, k, d, x, side),
+            Self::Point(p) => point::leg(m, k, p, x, side),
+        }
+    }
+}
+
+/// One connection between an endpoint and a point in the medium.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Leg {
+    /// Complex volumetric throughput `tau * xi` of the segment.
+    pub amp: Complex64,
+    /// Unit propagation direction of the segment at the medium point (into it for a source,
+    /// out of it for a sensor).
+    pub dir: DVec3,
+}
+
+/// One (source, sensor) pair, the index set of covariance entries and field pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Pair {
+    /// Index into the scene's sources.
+    pub source: usize,
+    /// Index into the scene's sensors.
+    pub sensor: usize,
+}
+
+impl Pair {
+    /// Every (source, sensor) combination, source-major: entry `j = source * n_sensors + sensor`,
+    /// so a field vector reshapes to `(n_sources, n_sensors)`.
+    pub fn all(n_sources: usize, n_sensors: usize) -> Vec<Pair> {
+        (0..n_sources)
+            .flat_map(|source| (0..n_sensors).map(move |sensor| Pair { source, sensor }))
+            .collect()
+    }
+}
+
+/// The field checks shared by the kinds.
+pub(crate) mod check {
+    use crate::EndpointError;
+    use glam::DVec3;
+    use speckle_medium::Dimension;
+
+    /// An invalid-input error naming `field`.
+    pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> EndpointError {
+        EndpointError::InvalidInput {
+            field: field.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// `v` must have `z = 0` in flatland.
+    pub(crate) fn in_plane(
+        field: &str,
+        v: DVec3,
+        dimension: Dimension,
+    ) -> Result<(), EndpointError> {
+        if dimension == Dimension::Two && v.z != 0.0 {
+            return Err(invalid(
+                field,
+                format!("{v} must have z = 0 in a flatland scene"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `v` normalised; it must be finite and non-zero.
+    pub(crate) fn unit(field: &str, v: DVec3) -> Result<DVec3, EndpointError> {
+        let len = v.length();
+        if v.is_finite() && len > 0.0 && len.is_finite() {
+            Ok(v / len)
+        } else {
+            Err(invalid(
+                field,
+                format!("direction {v} must be finite and non-zero"),
+            ))
+        }
+    }
 }

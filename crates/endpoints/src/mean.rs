@@ -69,11 +69,11 @@
 //! amplitude per unit length into the forward plane wave). The area integral runs over the exit
 //! edges with the same 1D rule and the same per-edge choice of legs.
 
-use crate::kernels::spreading;
+use crate::point;
 use crate::{EndpointError, Sensor, Source};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_medium::{Dimension, Medium, field_attenuation};
+use speckle_medium::{Dimension, Medium};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::PI;
 
@@ -87,25 +87,13 @@ pub fn mean_field<M: Medium, P: PhaseFunction>(
     sen: Sensor,
 ) -> Result<Complex64, EndpointError> {
     Ok(match (src, sen) {
+        // A point endpoint on either side: the attenuated direct path (Eq. 20), which is the
+        // other endpoint's leg evaluated at the point.
         (Source::Point { position: p }, Sensor::Point { position: q }) => {
-            let r = (q - p).length();
-            Complex64::from_polar(
-                field_attenuation(m.optical_depth(p, q)) * spreading(m.dimension(), r),
-                k * r,
-            )
+            point::direct_mean(m, k, p, q)
         }
-        (Source::PlaneWave { direction: i }, Sensor::Point { position: q }) => {
-            Complex64::from_polar(
-                field_attenuation(m.optical_depth_to_infinity(q, -i)),
-                k * i.dot(q),
-            )
-        }
-        (Source::Point { position: p }, Sensor::FarField { direction: v }) => {
-            Complex64::from_polar(
-                field_attenuation(m.optical_depth_to_infinity(p, v)),
-                -k * v.dot(p),
-            )
-        }
+        (Source::PlaneWave { .. }, Sensor::Point { position: q }) => src.leg(m, k, q).amp,
+        (Source::Point { position: p }, Sensor::FarField { .. }) => sen.leg(m, k, p).amp,
         (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
             let sigma_t = m
                 .uniform_sigma_t()

@@ -345,8 +345,12 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Fixes the first direction `w12` of the current path (call once, at its second vertex).
     pub(crate) fn second(&mut self, w12: DVec3) {
         let phase = &self.scene.phases()[self.type1];
-        times_amplitude(phase, &self.in1, &mut self.fwd_src, |d| (d, w12));
-        times_amplitude(phase, &self.out1, &mut self.rev_sens, |d| (-w12, d));
+        let out = &mut self.fwd_src;
+        self.sources
+            .scatter(&self.in1, phase, |d| (d, w12), &mut out.re, &mut out.im);
+        let out = &mut self.rev_sens;
+        self.sensors
+            .scatter(&self.out1, phase, |d| (-w12, d), &mut out.re, &mut out.im);
     }
 
     /// Computes the per-endpoint values of vertex `x_b`, where a particle of type `ty`
@@ -355,10 +359,14 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     fn legs_at(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
         let phase = &self.scene.phases()[ty];
         self.sensors.connect(x, &mut self.out_b);
-        times_amplitude(phase, &self.out_b, &mut self.fwd_sens, |d| (w_in, d));
+        let out = &mut self.fwd_sens;
+        self.sensors
+            .scatter(&self.out_b, phase, |d| (w_in, d), &mut out.re, &mut out.im);
         if coherence == Coherence::ForwardAndReversed {
             self.sources.connect(x, &mut self.in_b);
-            times_amplitude(phase, &self.in_b, &mut self.rev_src, |d| (d, -w_in));
+            let out = &mut self.rev_src;
+            self.sources
+                .scatter(&self.in_b, phase, |d| (d, -w_in), &mut out.re, &mut out.im);
         }
     }
 
@@ -432,25 +440,6 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
                 }
             }
         }
-    }
-}
-
-/// `out_i = legs_i s(dirs(d_i))` with `d_i` the direction of leg `i` and `dirs` giving the
-/// (incoming, outgoing) directions of the scattering.
-#[inline]
-fn times_amplitude<P: PhaseFunction>(
-    phase: &P,
-    legs: &Legs,
-    out: &mut Cvec,
-    dirs: impl Fn(DVec3) -> (DVec3, DVec3),
-) {
-    let n = legs.len();
-    let (re, im) = (&mut out.re[..n], &mut out.im[..n]);
-    for i in 0..n {
-        let (w_in, w_out) = dirs(legs.dir(i));
-        let x = legs.amp(i) * phase.amplitude_between(w_in, w_out);
-        re[i] = x.re;
-        im[i] = x.im;
     }
 }
 

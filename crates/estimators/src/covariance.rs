@@ -81,7 +81,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
         self.conn.first(x1, ty);
-        self.batch.single.add(&self.conn.a, weight);
+        self.batch.single.push_hermitian(&self.conn.a, weight);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -91,7 +91,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
         self.batch
             .multiple
-            .add(&self.conn.a, self.factor * v.weight);
+            .push_hermitian(&self.conn.a, self.factor * v.weight);
     }
 }
 
@@ -114,7 +114,7 @@ pub fn render_covariance<M: Medium, P: PhaseFunction>(
     options: &CovarianceOptions,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
-    render(scene, options, progress, Layout::Full)
+    render(scene, options, progress, Layout::Hermitian)
 }
 
 /// Renders only the diagonal of the covariance, the intensities `C[j, j] = E|u_j|^2 - |E u_j|^2`
@@ -144,7 +144,7 @@ pub fn render_intensity<M: Medium, P: PhaseFunction>(
     options: &CovarianceOptions,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
-    render(scene, options, progress, Layout::Diagonal)
+    render(scene, options, progress, Layout::HermitianDiagonal)
 }
 
 fn render<M: Medium, P: PhaseFunction>(
@@ -220,7 +220,7 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
     let buffers = Buffers::default();
     let work = |b: usize| {
         let mut conn = Connector::new(scene);
-        let mut sum = BatchSum::new(Layout::Full, j, &buffers);
+        let mut sum = BatchSum::new(Layout::Hermitian, j, &buffers);
         let range = batches.range(b);
         for path in range.clone() {
             if path % CANCEL_CHECK == 0 && progress.cancelled() {
@@ -228,12 +228,12 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
             }
             let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
             conn.first(x1, ty);
-            sum.add(&conn.a, w);
+            sum.push_hermitian(&conn.a, w);
         }
         progress.advance(range.end - range.start);
         Some((range.end - range.start, sum.finish()))
     };
-    let mut m = Moments::new(Layout::Full, j);
+    let mut m = Moments::new(Layout::Hermitian, j);
     if !run_ordered(batches.count(), j * j * 16, work, |_, (n, s)| {
         m.add_batch(n, &s, None);
         buffers.give(s);

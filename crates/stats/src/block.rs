@@ -1,35 +1,37 @@
-//! Hermitian sums `sum_n w_n a_n a_n^H` accumulated as rank-`K` updates (GEMM) instead of one
-//! rank-1 update per vector.
+//! Sums of outer products accumulated as rank-`K` updates (GEMM) instead of one rank-1 update
+//! per vector: the Hermitian `sum_n w_n a_n a_n^H` with real `w_n >= 0` ([`HermitianBlock`]) and
+//! the general `sum_n w_n a_n b_n^H` with complex `w_n` and `a_n != b_n` ([`GeneralBlock`]).
 //!
 //! A rank-1 update of a `J x J` matrix reads and writes every entry for `O(1)` flops each, so it
-//! runs at memory speed. Collecting `K` scaled vectors `b_n = sqrt(w_n) conj(a_n)` as the columns
-//! of a `J x K` block `B` and adding `B B^H` in one matrix product does `K` times the flops per
-//! pass over the matrix, at the speed of a GEMM kernel (faer, sequential: callers already run
-//! batches in parallel, and faer's own threads would compete with them).
+//! runs at memory speed. Collecting `K` vectors as the columns of `J x K` blocks and adding their
+//! product in one matrix multiplication does `K` times the flops per pass over the matrix, at the
+//! speed of a GEMM kernel (faer, sequential: callers already run batches in parallel, and faer's
+//! own threads would compete with them).
 //!
-//! Both accumulators here fill the upper triangle (diagonal included) of a row-major `J x J`
-//! buffer with `sum_n w_n a_n[r] conj(a_n[c])`, `c >= r`, and leave the strict lower triangle
-//! untouched: the layout of the batch sums ([`crate::BatchSum`]). Seen column-major,
-//! the buffer is `C^T`, whose lower triangle is that upper triangle, so one call of faer's
-//! triangular product with a lower-triangular destination fills it, at half the flops of the
-//! full product.
+//! Both accumulate into a row-major `J x J` buffer `m` with `m[r, c] += w a[r] conj(b[c])`. Seen
+//! column-major, the buffer is `D = C^T`:
+//! - Hermitian: column `n` of the block is `sqrt(w_n) conj(a_n)`, `D += B B^H` restricted to its
+//!   lower triangle (faer's triangular product, half the flops), which is the upper triangle of
+//!   `C`, diagonal included. The other triangle holds unspecified values (faer's kernels may write
+//!   into it on some instruction sets): readers use the upper triangle only.
+//! - General: columns `conj(b_n)` and `w_n a_n`, `D += conj(B) (W A)^T`, every entry.
 //!
-//! The block product sums in a different order than successive rank-1 updates and forms
-//! `(sqrt(w) a_r)(sqrt(w) conj a_c)` instead of `(w a_r) conj(a_c)`, so the two agree to
-//! rounding, not bitwise. The result depends only on the sequence of pushed vectors (and on the
+//! The block products sum in a different order than successive rank-1 updates, so the two agree
+//! to rounding, not bitwise. The result depends only on the sequence of pushed vectors (and on the
 //! instruction set faer selects at run time), not on threads or on addresses.
 //!
 //! faer's x86 kernels (hand-written assembly, `private-gemm-x86`) return with the upper halves of
 //! the vector registers dirty, without `vzeroupper`. The scalar code that follows is
 //! SSE-encoded (the default x86-64 target), and every SSE instruction then pays for merging with
 //! the dirty upper state: measured here, a covariance render at `J = 32` ran 3.7 times slower
-//! (52.7 ms against 14.2 ms) until each update ends with `vzeroupper`, which
-//! [`BlockAccumulator::flush`] now does (through the safe wrapper of `pulp`, faer's SIMD crate).
+//! (52.7 ms against 14.2 ms) until each update ends with `vzeroupper`, which both blocks'
+//! `flush` now does (through the safe wrapper of `pulp`, faer's SIMD crate).
 
+use faer::linalg::matmul::matmul_with_conj;
 use faer::linalg::matmul::triangular::{BlockStructure, matmul};
 #[cfg(target_arch = "x86_64")]
 use faer::traits::pulp::core_arch::x86::Avx;
-use faer::{Accum, MatMut, MatRef, Par};
+use faer::{Accum, Conj, MatMut, MatRef, Par};
 use num_complex::Complex64;
 
 /// Columns of the block: the depth `K` of each rank-`K` update.
@@ -42,8 +44,8 @@ use num_complex::Complex64;
 /// partly filled blocks, so `K` beyond the vertices of a batch would not help either.
 pub const BLOCK_COLUMNS: usize = 64;
 
-/// Accumulates `sum_n w_n a_n a_n^H` into the upper triangle of a row-major `J x J` buffer by
-/// rank-`K` updates.
+/// Accumulates `sum_n w_n a_n a_n^H` (real `w_n`) into the upper triangle of a row-major `J x J`
+/// buffer by rank-`K` updates; the strict lower triangle is left with unspecified values.
 ///
 /// [`push`](Self::push) stores `sqrt(w) conj(a)` as the next column of a `J x K` block and adds
 /// the block as one Hermitian rank-`K` update (`C += B B^H`, upper triangle only) when it is
@@ -58,23 +60,25 @@ pub const BLOCK_COLUMNS: usize = 64;
 ///
 /// ```
 /// use num_complex::Complex64;
-/// use speckle_stats::{BlockAccumulator, rank1_upper};
+/// use speckle_stats::{HermitianBlock, rank1_upper};
 /// let j = 3;
 /// let a = [Complex64::new(1.0, 2.0), Complex64::new(0.5, -1.0), Complex64::new(-2.0, 0.25)];
 /// let (mut by_block, mut by_rank1) = (vec![Complex64::ZERO; j * j], vec![Complex64::ZERO; j * j]);
-/// let mut acc = BlockAccumulator::new(j, 2);
+/// let mut acc = HermitianBlock::new(j, 2);
 /// let mut scratch = vec![Complex64::ZERO; j];
 /// for w in [0.5, 2.0, 3.0] {
 ///     acc.push(&mut by_block, &a, w);
 ///     rank1_upper(&mut by_rank1, &a, &mut scratch, w);
 /// }
 /// acc.flush(&mut by_block);
-/// for (x, y) in by_block.iter().zip(&by_rank1) {
-///     assert!((x - y).norm() < 1e-13);
+/// for r in 0..j {
+///     for c in r..j {
+///         assert!((by_block[r * j + c] - by_rank1[r * j + c]).norm() < 1e-13);
+///     }
 /// }
 /// ```
 #[derive(Debug, Clone)]
-pub struct BlockAccumulator {
+pub struct HermitianBlock {
     j: usize,
     capacity: usize,
     /// Filled columns of `block`.
@@ -90,7 +94,7 @@ pub struct BlockAccumulator {
     avx: Option<Avx>,
 }
 
-impl BlockAccumulator {
+impl HermitianBlock {
     /// An accumulator for vectors of length `j` with blocks of `k` columns (at least 1).
     pub fn new(j: usize, k: usize) -> Self {
         let capacity = k.max(1);
@@ -135,11 +139,11 @@ impl BlockAccumulator {
     /// `m.len() != J * J`.
     #[inline]
     pub fn push(&mut self, m: &mut [Complex64], a: &[Complex64], w: f64) {
-        assert_eq!(a.len(), self.j, "BlockAccumulator::push: vector length");
+        assert_eq!(a.len(), self.j, "HermitianBlock::push: vector length");
         assert_eq!(
             m.len(),
             self.j * self.j,
-            "BlockAccumulator::push: matrix size"
+            "HermitianBlock::push: matrix size"
         );
         if w == 0.0 {
             return;
@@ -168,7 +172,7 @@ impl BlockAccumulator {
         assert_eq!(
             m.len(),
             self.j * self.j,
-            "BlockAccumulator::flush: matrix size"
+            "HermitianBlock::flush: matrix size"
         );
         let (j, k) = (self.j, self.filled);
         if k == 0 {
@@ -210,7 +214,7 @@ impl BlockAccumulator {
 }
 
 /// Adds `weight * a a^H` to the upper triangle of the row-major `J x J` matrix `m`, one entry at
-/// a time (`conj` is scratch of length `J`): the reference that [`BlockAccumulator`] replaces,
+/// a time (`conj` is scratch of length `J`): the reference that [`HermitianBlock`] replaces,
 /// kept for vectors with negative weights, for tests and for benchmarks.
 #[inline]
 pub fn rank1_upper(m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64], weight: f64) {
@@ -223,6 +227,158 @@ pub fn rank1_upper(m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64],
         let row = &mut m[r * j + r..(r + 1) * j];
         for (s, c) in row.iter_mut().zip(&conj[r..]) {
             *s += ar * c;
+        }
+    }
+}
+
+/// Accumulates the general sum `sum_n w_n a_n b_n^H` (complex `w_n`, `a_n` and `b_n` different
+/// vectors) into every entry of a row-major `J x J` buffer by rank-`K` updates: the accumulation
+/// that time-lagged correlations, complex per-vertex factors and cross terms of two different
+/// field vectors need, at GEMM speed.
+///
+/// [`push`](Self::push) stores `conj(b)` and `w a` as the next columns of two `J x K` blocks;
+/// [`flush`](Self::flush) (also called when the blocks are full) adds their product. The sum is
+/// complete only after a flush. A zero weight adds nothing and is skipped.
+///
+/// ```
+/// use num_complex::Complex64;
+/// use speckle_stats::GeneralBlock;
+/// let c = Complex64::new;
+/// let (a, b) = ([c(1.0, 2.0), c(0.5, -1.0)], [c(-2.0, 0.25), c(0.0, 1.0)]);
+/// let w = c(0.5, -1.5);
+/// let mut m = vec![Complex64::ZERO; 4];
+/// let mut acc = GeneralBlock::new(2, 8);
+/// acc.push(&mut m, &a, &b, w);
+/// acc.flush(&mut m);
+/// for r in 0..2 {
+///     for k in 0..2 {
+///         assert!((m[r * 2 + k] - w * a[r] * b[k].conj()).norm() < 1e-15);
+///     }
+/// }
+/// ```
+#[derive(Debug, Clone)]
+pub struct GeneralBlock {
+    j: usize,
+    capacity: usize,
+    /// Filled columns of the blocks.
+    filled: usize,
+    /// Whether the target holds stale values (see [`Self::start_sum`]).
+    stale: bool,
+    /// Column-major `J x capacity`; column `n` is `b_n` (conjugated by the product).
+    b: Vec<Complex64>,
+    /// Column-major `J x capacity`; column `n` is `w_n a_n`.
+    wa: Vec<Complex64>,
+    /// AVX, when the CPU has it: each update ends with `vzeroupper` (see the module docs).
+    #[cfg(target_arch = "x86_64")]
+    avx: Option<Avx>,
+}
+
+impl GeneralBlock {
+    /// An accumulator for vectors of length `j` with blocks of `k` columns (at least 1).
+    pub fn new(j: usize, k: usize) -> Self {
+        let capacity = k.max(1);
+        Self {
+            j,
+            capacity,
+            filled: 0,
+            stale: false,
+            b: vec![Complex64::ZERO; j * capacity],
+            wa: vec![Complex64::ZERO; j * capacity],
+            #[cfg(target_arch = "x86_64")]
+            avx: Avx::try_new(),
+        }
+    }
+
+    /// Vector length `J`.
+    pub fn len(&self) -> usize {
+        self.j
+    }
+
+    /// Whether `J = 0`.
+    pub fn is_empty(&self) -> bool {
+        self.j == 0
+    }
+
+    /// Starts a new sum in a target holding stale values (a recycled buffer): pending columns
+    /// are dropped, the next update overwrites the target instead of adding to it, and a
+    /// [`flush`](Self::flush) before any update clears it.
+    pub fn start_sum(&mut self) {
+        self.filled = 0;
+        self.stale = true;
+    }
+
+    /// Adds `w a b^H` to the sum held in `m` (row-major `J x J`). Panics if `a` or `b` do not
+    /// have length `J` or `m.len() != J * J`.
+    #[inline]
+    pub fn push(&mut self, m: &mut [Complex64], a: &[Complex64], b: &[Complex64], w: Complex64) {
+        assert!(
+            a.len() == self.j && b.len() == self.j,
+            "GeneralBlock::push: vector length"
+        );
+        assert_eq!(m.len(), self.j * self.j, "GeneralBlock::push: matrix size");
+        if w == Complex64::ZERO {
+            return;
+        }
+        let col = self.filled * self.j..(self.filled + 1) * self.j;
+        self.b[col.clone()].copy_from_slice(b);
+        for (y, x) in self.wa[col].iter_mut().zip(a) {
+            *y = w * x;
+        }
+        self.filled += 1;
+        if self.filled == self.capacity {
+            self.flush(m);
+        }
+    }
+
+    /// Adds the filled columns to `m` as one rank-`K` update and empties the blocks: afterwards
+    /// `m` holds the complete sum. Panics if `m.len() != J * J`.
+    pub fn flush(&mut self, m: &mut [Complex64]) {
+        assert_eq!(m.len(), self.j * self.j, "GeneralBlock::flush: matrix size");
+        let (j, k) = (self.j, self.filled);
+        if k == 0 {
+            if self.stale {
+                m.fill(Complex64::ZERO);
+                self.stale = false;
+            }
+            return;
+        }
+        // The row-major buffer read column-major is D = C^T: D[c, r] = sum w a_r conj(b_c), the
+        // product of conj(B) (J x K, column n = conj(b_n)) and (W A)^T (K x J).
+        let d = MatMut::from_column_major_slice_mut(m, j, j);
+        let b = MatRef::from_column_major_slice(&self.b[..j * k], j, k);
+        let wa = MatRef::from_column_major_slice(&self.wa[..j * k], j, k);
+        matmul_with_conj(
+            d,
+            if self.stale {
+                Accum::Replace
+            } else {
+                Accum::Add
+            },
+            b,
+            Conj::Yes,
+            wa.transpose(),
+            Conj::No,
+            Complex64::ONE,
+            Par::Seq,
+        );
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx) = self.avx {
+            avx._mm256_zeroupper();
+        }
+        self.filled = 0;
+        self.stale = false;
+    }
+}
+
+/// Adds `w a b^H` to the row-major `J x J` matrix `m`, one entry at a time: the reference that
+/// [`GeneralBlock`] replaces, for tests and benchmarks.
+#[inline]
+pub fn rank1_general(m: &mut [Complex64], a: &[Complex64], b: &[Complex64], w: Complex64) {
+    let j = a.len();
+    for r in 0..j {
+        let ar = w * a[r];
+        for (s, y) in m[r * j..(r + 1) * j].iter_mut().zip(b) {
+            *s += ar * y.conj();
         }
     }
 }
@@ -254,7 +410,7 @@ mod tests {
 
     fn by_block(j: usize, k: usize, vectors: &[(Vec<Complex64>, f64)]) -> Vec<Complex64> {
         let mut m = vec![Complex64::ZERO; j * j];
-        let mut acc = BlockAccumulator::new(j, k);
+        let mut acc = HermitianBlock::new(j, k);
         for (a, w) in vectors {
             acc.push(&mut m, a, *w);
         }
@@ -279,14 +435,13 @@ mod tests {
             for r in 0..j {
                 for c in 0..j {
                     let idx = r * j + c;
+                    // The upper triangle (diagonal included) is the sum; the other is unspecified.
                     if c >= r {
                         let err = (m[idx] - reference[idx]).norm();
                         assert!(
                             err <= 1e-14 * scale * n as f64,
                             "J={j} K={k} ({r},{c}): {err:e}"
                         );
-                    } else {
-                        assert_eq!(m[idx], Complex64::ZERO, "lower triangle touched");
                     }
                 }
             }
@@ -302,8 +457,98 @@ mod tests {
             .map(|(i, &w)| (vector(j, i as u64 + 11), w))
             .collect();
         let (reference, m) = (by_rank1(j, &vectors), by_block(j, 4, &vectors));
-        for (x, y) in m.iter().zip(&reference) {
+        for (x, y) in upper(&m, j).zip(upper(&reference, j)) {
             assert!((x - y).norm() < 1e-14, "{x} vs {y}");
+        }
+    }
+
+    /// The entries `c >= r` of a row-major `J x J` matrix, row by row.
+    fn upper(m: &[Complex64], j: usize) -> impl Iterator<Item = Complex64> + '_ {
+        (0..j).flat_map(move |r| m[r * j + r..(r + 1) * j].iter().copied())
+    }
+
+    /// `sum w a b^H` with complex weights by the block, against the naive triple loop written
+    /// here independently of `rank1_general`: every entry, several `J`, `K` and vector counts
+    /// (partly filled last blocks), zero weights among them. Tolerance: `1e-14` of the largest
+    /// term times the number of terms (rounding of `n` additions).
+    #[test]
+    fn general_block_equals_the_naive_sum() {
+        for (j, k, n) in [
+            (1, 1, 3),
+            (2, 64, 5),
+            (7, 3, 11),
+            (40, 16, 100),
+            (129, 64, 130),
+        ] {
+            let terms: Vec<_> = (0..n)
+                .map(|i| {
+                    let w = if i % 5 == 4 {
+                        Complex64::ZERO
+                    } else {
+                        Complex64::new(0.3 + (i % 3) as f64, -1.0 + (i % 4) as f64)
+                    };
+                    (vector(j, 3 * i as u64 + 1), vector(j, 3 * i as u64 + 2), w)
+                })
+                .collect();
+            let mut naive = vec![Complex64::ZERO; j * j];
+            let mut largest: f64 = 0.0;
+            for (a, b, w) in &terms {
+                for r in 0..j {
+                    for c in 0..j {
+                        let t = w * a[r] * b[c].conj();
+                        naive[r * j + c] += t;
+                        largest = largest.max(t.norm());
+                    }
+                }
+            }
+            let mut m = vector(j * j, 77); // stale values: start_sum must overwrite them
+            let mut acc = GeneralBlock::new(j, k);
+            acc.start_sum();
+            for (a, b, w) in &terms {
+                acc.push(&mut m, a, b, *w);
+            }
+            acc.flush(&mut m);
+            let tol = 1e-14 * largest * n as f64;
+            for (idx, (x, y)) in m.iter().zip(&naive).enumerate() {
+                assert!((x - y).norm() <= tol, "J={j} K={k} entry {idx}: {x} vs {y}");
+            }
+            // The reference rank-1 update agrees too.
+            let mut r1 = vec![Complex64::ZERO; j * j];
+            for (a, b, w) in &terms {
+                rank1_general(&mut r1, a, b, *w);
+            }
+            for (x, y) in r1.iter().zip(&naive) {
+                assert!((x - y).norm() <= tol);
+            }
+        }
+    }
+
+    /// With `b = a` and real positive weights the general block gives the Hermitian sum.
+    #[test]
+    fn general_block_with_equal_vectors_is_the_hermitian_sum() {
+        let (j, n) = (23, 70);
+        let vectors: Vec<_> = (0..n)
+            .map(|i| (vector(j, i as u64 + 40), 0.5 + (i % 6) as f64))
+            .collect();
+        let h = by_block(j, 16, &vectors);
+        let mut g = vec![Complex64::ZERO; j * j];
+        let mut acc = GeneralBlock::new(j, 16);
+        for (a, w) in &vectors {
+            acc.push(&mut g, a, a, Complex64::new(*w, 0.0));
+        }
+        acc.flush(&mut g);
+        for r in 0..j {
+            for c in 0..j {
+                let (x, y) = (
+                    g[r * j + c],
+                    if c >= r {
+                        h[r * j + c]
+                    } else {
+                        h[c * j + r].conj()
+                    },
+                );
+                assert!((x - y).norm() < 1e-12, "({r},{c}): {x} vs {y}");
+            }
         }
     }
 
@@ -321,7 +566,7 @@ mod tests {
                 .collect();
             let reference = by_block(j, 4, &vectors);
             let mut m = vector(j * j, 99);
-            let mut acc = BlockAccumulator::new(j, 4);
+            let mut acc = HermitianBlock::new(j, 4);
             acc.push(&mut m, &vector(j, 1234), 7.0);
             acc.start_sum();
             for (a, w) in &vectors {
@@ -356,13 +601,15 @@ mod tests {
         for shift in 1..4 {
             let mut storage = vec![Complex64::ZERO; j * j + shift];
             let m = &mut storage[shift..];
-            let mut acc = BlockAccumulator::new(j, k);
+            let mut acc = HermitianBlock::new(j, k);
             for (a, w) in &vectors {
                 acc.push(m, a, *w);
             }
             acc.flush(m);
             let bits = |z: &[Complex64]| -> Vec<(u64, u64)> {
-                z.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+                upper(z, j)
+                    .map(|z| (z.re.to_bits(), z.im.to_bits()))
+                    .collect()
             };
             assert_eq!(bits(m), bits(&reference), "shift {shift}");
         }

@@ -20,7 +20,7 @@ mod matrix;
 mod moments;
 pub mod rng;
 
-pub use block::{BLOCK_COLUMNS, BlockAccumulator, rank1_upper};
+pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
 pub use driver::{Batches, CANCEL_CHECK, NoProgress, Progress, TARGET_BATCHES, run_ordered};
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};

@@ -1,85 +1,158 @@
 //! Batch-means accumulation of matrix estimates and their standard errors.
 
-use crate::block::{BLOCK_COLUMNS, BlockAccumulator};
+use crate::block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock};
 use crate::{CMatrix, MatrixEstimate};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::sync::{Mutex, PoisonError};
 
-/// Which entries of the `J x J` Hermitian matrix `sum w a a^H` are accumulated.
+/// Which sum a batch accumulates, and which of its entries.
+///
+/// Hermitian sums `sum w a a^H` (real `w >= 0`: covariances of one time) store the upper
+/// triangle; general sums `sum w a b^H` (complex `w`, `b != a`: time-lagged correlations,
+/// complex per-vertex factors) store every entry. Either can be restricted to its diagonal
+/// (`O(J)` per vertex instead of `O(J^2)`: intensities, or `g1` of many pairs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
-    /// The upper triangle, stored in a full row-major `J x J` buffer.
-    Full,
-    /// The diagonal only (intensities), stored as a `J` vector.
-    Diagonal,
+    /// `sum w a a^H`: the upper triangle, stored in a full row-major `J x J` buffer.
+    Hermitian,
+    /// `sum w |a_j|^2`: the diagonal of a Hermitian sum, real, stored as a `J` vector.
+    HermitianDiagonal,
+    /// `sum w a b^H`: every entry of a row-major `J x J` buffer.
+    General,
+    /// `sum w a_j conj(b_j)`: the diagonal of a general sum, stored as a `J` vector.
+    GeneralDiagonal,
 }
 
 impl Layout {
     /// Length of the accumulation buffer.
     pub fn len(self, j: usize) -> usize {
         match self {
-            Self::Full => j * j,
-            Self::Diagonal => j,
+            Self::Hermitian | Self::General => j * j,
+            Self::HermitianDiagonal | Self::GeneralDiagonal => j,
         }
+    }
+
+    /// Whether only the diagonal is stored.
+    pub fn is_diagonal(self) -> bool {
+        matches!(self, Self::HermitianDiagonal | Self::GeneralDiagonal)
+    }
+
+    /// Whether the sum is Hermitian (real weights, one vector).
+    pub fn is_hermitian(self) -> bool {
+        matches!(self, Self::Hermitian | Self::HermitianDiagonal)
     }
 }
 
-/// The sum `sum w a a^H` of one batch, in the entries of a [`Layout`].
+/// The rank-`K` accumulator of a full batch sum.
+#[derive(Debug, Clone)]
+enum Block {
+    Hermitian(HermitianBlock),
+    General(GeneralBlock),
+}
+
+/// The sum of one batch, in the entries of a [`Layout`].
 ///
-/// The diagonal `sum w |a_j|^2` is summed in real arithmetic, vertex by vertex, in both layouts
-/// alike, so that an intensity-only render gives bitwise the diagonal of
-/// the full covariance render. A full matrix's other entries go through a [`BlockAccumulator`]
-/// (rank-[`BLOCK_COLUMNS`] updates), whose diagonal is then replaced; a `1 x 1` matrix is its
-/// diagonal alone.
+/// In a Hermitian layout the diagonal `sum w |a_j|^2` is summed in real arithmetic, vertex by
+/// vertex, in the full and the diagonal layout alike, so that an intensity-only render gives
+/// bitwise the diagonal of the full covariance render. A full matrix's other entries go through
+/// a [`HermitianBlock`] or a [`GeneralBlock`] (rank-[`BLOCK_COLUMNS`] updates).
 #[derive(Debug, Clone)]
 pub struct BatchSum {
-    /// The diagonal.
-    diag: Vec<f64>,
-    /// [`Layout::Full`] with `J > 1`: the row-major `J x J` sum (upper triangle) and its
+    layout: Layout,
+    /// The diagonal (Hermitian layouts, and the general diagonal).
+    diag: Vec<Complex64>,
+    /// A full layout (the Hermitian one with `J > 1`): the row-major `J x J` sum and its
     /// accumulator.
-    full: Option<(Vec<Complex64>, BlockAccumulator)>,
+    full: Option<(Vec<Complex64>, Block)>,
 }
 
 impl BatchSum {
     /// An empty sum; a full one in a buffer from `buffers`.
     pub fn new(layout: Layout, j: usize, buffers: &Buffers) -> Self {
-        let full = (layout == Layout::Full && j > 1).then(|| {
-            // The block's first update overwrites the recycled buffer's stale triangle.
-            let mut block = BlockAccumulator::new(j, BLOCK_COLUMNS);
-            block.start_sum();
-            (buffers.take(j * j), block)
-        });
+        // The block's first update overwrites the recycled buffer's stale values.
+        let full = match layout {
+            Layout::Hermitian if j > 1 => {
+                let mut block = HermitianBlock::new(j, BLOCK_COLUMNS);
+                block.start_sum();
+                Some((buffers.take(j * j), Block::Hermitian(block)))
+            }
+            Layout::General => {
+                let mut block = GeneralBlock::new(j, BLOCK_COLUMNS);
+                block.start_sum();
+                Some((buffers.take(j * j), Block::General(block)))
+            }
+            _ => None,
+        };
+        let diag_len = if layout == Layout::General { 0 } else { j };
         Self {
-            diag: vec![0.0; j],
+            layout,
+            diag: vec![Complex64::ZERO; diag_len],
             full,
         }
     }
 
-    /// Adds `w a a^H` (its stored entries).
+    /// The layout.
+    pub fn layout(&self) -> Layout {
+        self.layout
+    }
+
+    /// Adds `w a a^H` with a real weight (its stored entries). In a general layout this is
+    /// `push(a, a, w)`.
     #[inline]
-    pub fn add(&mut self, a: &[Complex64], w: f64) {
-        for (d, x) in self.diag.iter_mut().zip(a) {
-            *d += w * x.norm_sqr();
+    pub fn push_hermitian(&mut self, a: &[Complex64], w: f64) {
+        match self.layout {
+            Layout::Hermitian | Layout::HermitianDiagonal => {
+                for (d, x) in self.diag.iter_mut().zip(a) {
+                    d.re += w * x.norm_sqr();
+                }
+                if let Some((sum, Block::Hermitian(block))) = &mut self.full {
+                    block.push(sum, a, w);
+                }
+            }
+            Layout::General | Layout::GeneralDiagonal => self.push(a, a, Complex64::new(w, 0.0)),
         }
-        if let Some((sum, block)) = &mut self.full {
-            block.push(sum, a, w);
+    }
+
+    /// Adds `w a b^H` (its stored entries).
+    ///
+    /// # Panics
+    /// In a Hermitian layout, which cannot hold a general term.
+    #[inline]
+    pub fn push(&mut self, a: &[Complex64], b: &[Complex64], w: Complex64) {
+        match self.layout {
+            Layout::GeneralDiagonal => {
+                for ((d, x), y) in self.diag.iter_mut().zip(a).zip(b) {
+                    *d += w * x * y.conj();
+                }
+            }
+            Layout::General => {
+                if let Some((sum, Block::General(block))) = &mut self.full {
+                    block.push(sum, a, b, w);
+                }
+            }
+            Layout::Hermitian | Layout::HermitianDiagonal => {
+                panic!("BatchSum::push: a general term in a Hermitian sum")
+            }
         }
     }
 
     /// The complete sum in the entries of the layout (the last, partly filled block added).
     pub fn finish(self) -> Vec<Complex64> {
-        let diag = self.diag.into_iter().map(|d| Complex64::new(d, 0.0));
         match self.full {
-            Some((mut sum, mut block)) => {
+            Some((mut sum, Block::Hermitian(mut block))) => {
                 block.flush(&mut sum);
                 let j = block.len();
-                for (r, d) in diag.enumerate() {
+                for (r, d) in self.diag.into_iter().enumerate() {
                     sum[r * j + r] = d;
                 }
                 sum
             }
-            None => diag.collect(),
+            Some((mut sum, Block::General(mut block))) => {
+                block.flush(&mut sum);
+                sum
+            }
+            None => self.diag,
         }
     }
 }
@@ -87,7 +160,7 @@ impl BatchSum {
 /// Buffers of batch sums handed back after their merge, for the next batches. A fresh `J x J`
 /// buffer for every batch costs page faults and the kernel's zeroing on every use (a quarter of a
 /// one-thread render at `J = 512` with 32 paths per batch), clearing it again a tenth; a
-/// recycled one is handed out as it is (see [`BlockAccumulator::start_sum`]).
+/// recycled one is handed out as it is (see [`HermitianBlock::start_sum`]).
 #[derive(Debug, Default)]
 pub struct Buffers(Mutex<Vec<Vec<Complex64>>>);
 
@@ -114,7 +187,7 @@ impl Buffers {
 
 /// Sums of batch sums and of their squares, per stored entry of a [`Layout`]: the upper triangle
 /// of a `J x J` Hermitian matrix (stored in full, lower triangle unused until
-/// [`Moments::finish`]) or its diagonal.
+/// [`Moments::finish`]), every entry of a general one, or a diagonal.
 ///
 /// With batch sums `S_b` of `n_b` paths, the per-path variance is estimated as
 /// `(sum_b S_b^2 / n_b - N mean^2) / (B - 1)` (each batch sum has variance `n_b sigma^2`), for the
@@ -155,12 +228,15 @@ impl Moments {
         let inv = 1.0 / n as f64;
         let j = self.j;
         let (sum, sq_re, sq_im) = (&mut self.sum, &mut self.sq_re, &mut self.sq_im);
+        let upper = self.layout == Layout::Hermitian;
         match self.layout {
-            Layout::Diagonal => add_span(sum, sq_re, sq_im, a, b, inv),
-            Layout::Full if j * j < PARALLEL_ENTRIES => {
-                add_rows(0, j, sum, sq_re, sq_im, a, b, inv);
+            Layout::HermitianDiagonal | Layout::GeneralDiagonal => {
+                add_span(sum, sq_re, sq_im, a, b, inv)
             }
-            Layout::Full => {
+            _ if j * j < PARALLEL_ENTRIES => {
+                add_rows(0, j, upper, sum, sq_re, sq_im, a, b, inv);
+            }
+            _ => {
                 let rows = (PARALLEL_ENTRIES / j).max(1);
                 let len = rows * j;
                 sum.par_chunks_mut(len)
@@ -170,7 +246,7 @@ impl Moments {
                     .for_each(|(c, ((sum, sq_re), sq_im))| {
                         let span = c * len..c * len + sum.len();
                         let (a, b) = (&a[span.clone()], b.map(|b| &b[span]));
-                        add_rows(c * rows, j, sum, sq_re, sq_im, a, b, inv);
+                        add_rows(c * rows, j, upper, sum, sq_re, sq_im, a, b, inv);
                     });
             }
         }
@@ -178,8 +254,9 @@ impl Moments {
         self.batches += 1;
     }
 
-    /// The estimate with standard errors (infinite with one batch): the Hermitian `J x J`
-    /// matrix, or for [`Layout::Diagonal`] its real diagonal as a `J x 1` column.
+    /// The estimate with standard errors (infinite with one batch): the `J x J` matrix (Hermitian
+    /// for [`Layout::Hermitian`]), or for the diagonal layouts the diagonal as a `J x 1` column
+    /// (real for [`Layout::HermitianDiagonal`]).
     pub fn finish(self) -> MatrixEstimate {
         let j = self.j;
         let n = self.paths as f64;
@@ -191,14 +268,32 @@ impl Moments {
                 ((sq - n * mean * mean).max(0.0) / dof / n).sqrt()
             }
         };
-        if self.layout == Layout::Diagonal {
-            let value = self.sum.iter().map(|s| Complex64::new(s.re / n, 0.0));
-            let se = (0..j).map(|i| Complex64::new(se_of(self.sq_re[i], self.sum[i].re / n), 0.0));
-            return MatrixEstimate {
-                value: CMatrix::from_vec(j, 1, value.collect()),
-                std_error: CMatrix::from_vec(j, 1, se.collect()),
-                samples: self.paths,
-            };
+        let entry = |i: usize| {
+            let mean = self.sum[i] / n;
+            let e = Complex64::new(se_of(self.sq_re[i], mean.re), se_of(self.sq_im[i], mean.im));
+            (mean, e)
+        };
+        match self.layout {
+            Layout::HermitianDiagonal => {
+                let value = self.sum.iter().map(|s| Complex64::new(s.re / n, 0.0));
+                let se =
+                    (0..j).map(|i| Complex64::new(se_of(self.sq_re[i], self.sum[i].re / n), 0.0));
+                return MatrixEstimate {
+                    value: CMatrix::from_vec(j, 1, value.collect()),
+                    std_error: CMatrix::from_vec(j, 1, se.collect()),
+                    samples: self.paths,
+                };
+            }
+            Layout::GeneralDiagonal | Layout::General => {
+                let cols = if self.layout == Layout::General { j } else { 1 };
+                let (value, se): (Vec<_>, Vec<_>) = (0..self.sum.len()).map(entry).unzip();
+                return MatrixEstimate {
+                    value: CMatrix::from_vec(j, cols, value),
+                    std_error: CMatrix::from_vec(j, cols, se),
+                    samples: self.paths,
+                };
+            }
+            Layout::Hermitian => {}
         }
         let mut value = CMatrix::zeros(j, j);
         let mut se = CMatrix::zeros(j, j);
@@ -233,12 +328,14 @@ impl Moments {
 /// entries of each parallel task above.
 const PARALLEL_ENTRIES: usize = 1 << 15;
 
-/// Adds the upper triangles of rows `first..` of the batch sums `a` (or `a + b`) of a
-/// row-major `J`-column matrix to the moments (`inv = 1 / n`); all slices start at row `first`.
+/// Adds rows `first..` of the batch sums `a` (or `a + b`) of a row-major `J`-column matrix to
+/// the moments (`inv = 1 / n`), their upper triangles only if `upper`; all slices start at row
+/// `first`.
 #[allow(clippy::too_many_arguments)]
 fn add_rows(
     first: usize,
     j: usize,
+    upper: bool,
     sum: &mut [Complex64],
     sq_re: &mut [f64],
     sq_im: &mut [f64],
@@ -247,7 +344,8 @@ fn add_rows(
     inv: f64,
 ) {
     for i in 0..sum.len() / j {
-        let range = i * j + first + i..(i + 1) * j;
+        let from = if upper { first + i } else { 0 };
+        let range = i * j + from..(i + 1) * j;
         add_span(
             &mut sum[range.clone()],
             &mut sq_re[range.clone()],

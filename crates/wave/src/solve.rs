@@ -6,7 +6,7 @@ use faer::linalg::lu::partial_pivoting::{factor, solve as lu_solve};
 use faer::{Mat, Par};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_endpoints::{Sensor, Source};
+use speckle_endpoints::{FreeSpace, direct_field, incident_field, sensor_response};
 use speckle_medium::{Dimension, HomogeneousBox, Medium};
 use speckle_phase::Phase;
 use speckle_scene::Scene;
@@ -196,24 +196,24 @@ pub(crate) fn solve_checked(
     scatterers: &[DVec3],
 ) -> Result<Vec<Complex64>, WaveError> {
     let n = scatterers.len();
-    let k = kernel.wavenumber();
-    let tau = kernel.t_matrix();
+    let space = Space::new(kernel);
+    let tau = space.tau;
     let sources = scene.sources();
+    // Incident fields at the scatterers; a scatterer on a point source is refused.
+    let mut u_inc = Vec::with_capacity(n * sources.len());
     for (s, source) in sources.iter().enumerate() {
-        if let Source::Point { position } = *source {
-            if let Some(at) = scatterers.iter().position(|o| *o == position) {
-                return Err(invalid(
+        for (at, o) in scatterers.iter().enumerate() {
+            u_inc.push(incident_field(source, &space, *o).ok_or_else(|| {
+                invalid(
                     format!("scatterers[{at}]"),
-                    format!("coincides with the point source {s} at {position}"),
-                ));
-            }
+                    format!("coincides with the point source {s} at {o}"),
+                )
+            })?);
         }
     }
 
     // Exciting fields psi (N x S, one column per source): (I - tau G_offdiag) psi = u_inc.
-    let mut psi = Mat::<Complex64>::from_fn(n, sources.len(), |i, s| {
-        incident(&kernel, &sources[s], scatterers[i])
-    });
+    let mut psi = Mat::<Complex64>::from_fn(n, sources.len(), |i, s| u_inc[s * n + i]);
     if n > 0 {
         let mut a = Mat::<Complex64>::identity(n, n);
         for j in 0..n {
@@ -252,80 +252,73 @@ pub(crate) fn solve_checked(
     }
     let mut fields = vec![Complex64::new(0.0, 0.0); scene.len()];
     let mut weights = vec![Complex64::new(0.0, 0.0); n];
-    let far = kernel.scattering_amplitude();
     for (v, pairs) in by_sensor.iter().enumerate() {
         if pairs.is_empty() {
             continue;
         }
         let sensor = scene.sensors()[v];
-        // u_scat(sensor) = sum_n w_n psi_n.
-        for (w, o) in weights.iter_mut().zip(scatterers) {
-            *w = match sensor {
-                // A(v) = sum_n f e^{-ik v.o_n} psi_n (f = tau g, the far-field factor).
-                Sensor::FarField { direction } => {
-                    far * Complex64::from_polar(1.0, -k * direction.dot(*o))
-                }
-                // u(q) = u_inc(q) + sum_n tau G(q - o_n) psi_n.
-                Sensor::Point { position } => {
-                    let r = (position - *o).length();
-                    if r == 0.0 {
-                        let at = scatterers.iter().position(|x| x == o).unwrap_or_default();
-                        return Err(invalid(
-                            format!("scatterers[{at}]"),
-                            format!("coincides with the point sensor {v} at {position}"),
-                        ));
-                    }
-                    tau * kernel.green(r)
-                }
-            };
+        // u_scat(sensor) = sum_n w_n psi_n, w_n the sensor's reading of scatterer n.
+        for (at, (w, o)) in weights.iter_mut().zip(scatterers).enumerate() {
+            *w = sensor_response(&sensor, &space, *o).ok_or_else(|| {
+                invalid(
+                    format!("scatterers[{at}]"),
+                    format!("coincides with the point sensor {v} at {o}"),
+                )
+            })?;
         }
         for &j in pairs {
             let s = scene.pairs()[j].source;
             let column = psi.col_as_slice(s);
             let scattered: Complex64 = weights.iter().zip(column).map(|(w, p)| w * p).sum();
-            fields[j] = scattered + direct(&kernel, j, &sources[s], &sensor)?;
+            let direct = direct_field(&sources[s], &sensor, &space).ok_or_else(|| {
+                let at = match sensor {
+                    speckle_endpoints::Sensor::Point { position } => position,
+                    speckle_endpoints::Sensor::FarField { direction } => direction,
+                };
+                invalid(
+                    format!("pairs[{j}]"),
+                    format!("the point source and the point sensor coincide at {at}"),
+                )
+            })?;
+            fields[j] = scattered + direct;
         }
     }
     Ok(fields)
 }
 
-/// The incident field of a source at `x`.
-#[inline]
-fn incident(kernel: &Kernel, source: &Source, x: DVec3) -> Complex64 {
-    match *source {
-        Source::PlaneWave { direction } => {
-            Complex64::from_polar(1.0, kernel.wavenumber() * direction.dot(x))
+/// The free-space physics of a [`Kernel`] as the endpoints see it, with the scatterer's
+/// t-matrix and far-field amplitude formed once.
+struct Space {
+    kernel: Kernel,
+    tau: Complex64,
+    far: Complex64,
+}
+
+impl Space {
+    fn new(kernel: Kernel) -> Self {
+        Self {
+            kernel,
+            tau: kernel.t_matrix(),
+            far: kernel.scattering_amplitude(),
         }
-        Source::Point { position } => kernel.point_source((x - position).length()),
     }
 }
 
-/// The incident field's own contribution to a sensor: its value at a point sensor, its
-/// far-field amplitude `e^{-ik v.p}` for a point source and a far-field sensor, none for a
-/// plane wave and a far-field sensor.
-fn direct(
-    kernel: &Kernel,
-    j: usize,
-    source: &Source,
-    sensor: &Sensor,
-) -> Result<Complex64, WaveError> {
-    Ok(match (*source, *sensor) {
-        (_, Sensor::Point { position }) => {
-            if let Source::Point { position: p } = *source {
-                if p == position {
-                    return Err(invalid(
-                        format!("pairs[{j}]"),
-                        format!("the point source and the point sensor coincide at {p}"),
-                    ));
-                }
-            }
-            incident(kernel, source, position)
-        }
-        (Source::Point { position }, Sensor::FarField { direction }) => {
-            Complex64::from_polar(1.0, -kernel.wavenumber() * direction.dot(position))
-        }
-        (Source::PlaneWave { .. }, Sensor::FarField { .. }) => Complex64::new(0.0, 0.0),
-    })
+impl FreeSpace for Space {
+    fn wavenumber(&self) -> f64 {
+        self.kernel.wavenumber()
+    }
+    #[inline]
+    fn point_source(&self, r: f64) -> Complex64 {
+        self.kernel.point_source(r)
+    }
+    #[inline]
+    fn scattered(&self, r: f64) -> Complex64 {
+        self.tau * self.kernel.green(r)
+    }
+    fn scattering_amplitude(&self) -> Complex64 {
+        self.far
+    }
 }
 
 /// Solves `A X = B` in place of `B` with one LU factorisation of `A` (partial pivoting),

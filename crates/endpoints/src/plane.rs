@@ -1,0 +1,110 @@
+//! The directional kind: a plane-wave source `exp(i k d . x)` and, its reciprocal, a far-field
+//! sensor reading the scattering amplitude `A(v)` of `u(R v) = A(v) exp(i k R) / R` (Bar et al.
+//! 2019, Eqs. 19, 24-25). Everything about this kind is here: validation, reciprocity, the
+//! scalar leg, the vectorised kernel and its exact vacuum field for the wave solver.
+//!
+//! A directional endpoint in its source form has a propagation direction `d` (`d = i` for a
+//! plane wave, `d = -v` for the far-field sensor `v`, which reads what a plane wave along `-v`
+//! would illuminate): the leg to `x` has the phase `k d . x` and is attenuated along `-d` from
+//! `x` to the boundary.
+
+use crate::kernels::BoxMedium;
+use crate::{EndpointError, Leg, Side, check, fastmath};
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_medium::{Medium, field_attenuation};
+
+/// Validates a direction: finite, non-zero (normalised), in the plane `z = 0` in flatland.
+pub(crate) fn validated<M: Medium>(
+    field: &str,
+    direction: DVec3,
+    m: &M,
+) -> Result<DVec3, EndpointError> {
+    check::in_plane(field, direction, m.dimension())?;
+    check::unit(field, direction)
+}
+
+/// The leg of the directional endpoint of propagation direction `d` (source form) at `x`:
+/// `tau xi = exp(-sigma_t t / 2) exp(i k d . x)`, `t` the distance from `x` to the boundary
+/// along `-d`.
+#[inline]
+pub(crate) fn leg<M: Medium>(m: &M, k: f64, d: DVec3, x: DVec3, side: Side) -> Leg {
+    let att = field_attenuation(m.optical_depth_to_infinity(x, -d));
+    Leg {
+        amp: Complex64::from_polar(att, k * d.dot(x)),
+        dir: side.direction(d),
+    }
+}
+
+/// The exact vacuum field of the plane wave of propagation direction `d` at `x` (unit
+/// amplitude).
+#[inline]
+pub(crate) fn incident(k: f64, d: DVec3, x: DVec3) -> Complex64 {
+    Complex64::from_polar(1.0, k * d.dot(x))
+}
+
+/// Directional endpoints, structure of arrays: the phase is `kx x + ky y + kz z`, the
+/// attenuation exponent `max_a (c_a q_a + r_a)` (see [`far_coefficients`]). Their leg
+/// directions are constant: `Endpoints::legs` fills them in once.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Run {
+    k: [Vec<f64>; 3],
+    q: [Vec<f64>; 3],
+    r: [Vec<f64>; 3],
+}
+
+impl Run {
+    /// Appends the endpoint of propagation direction `d` (source form).
+    pub(crate) fn push(&mut self, g: &BoxMedium, k: f64, d: DVec3) {
+        let (exit, kappa) = (-d, k * d);
+        for a in 0..3 {
+            let (q, r) = far_coefficients(exit[a], g.half[a], g.half_sigma_t);
+            self.k[a].push(kappa[a]);
+            self.q[a].push(q);
+            self.r[a].push(r);
+        }
+    }
+
+    /// The kernel: `re + i im = exp(max_a(c_a q_a + r_a)) exp(i kappa . x)`. Returns false if a
+    /// phase was out of the range of the vectorised `sin_cos`.
+    #[inline(never)]
+    pub(crate) fn connect(&self, g: &BoxMedium, x: DVec3, re: &mut [f64], im: &mut [f64]) -> bool {
+        let n = re.len();
+        let c = g.center - x;
+        let (kx, ky, kz) = (&self.k[0][..n], &self.k[1][..n], &self.k[2][..n]);
+        let (qx, qy, qz) = (&self.q[0][..n], &self.q[1][..n], &self.q[2][..n]);
+        let (rx, ry, rz) = (&self.r[0][..n], &self.r[1][..n], &self.r[2][..n]);
+        let im = &mut im[..n];
+        let mut in_range = true;
+        for i in 0..n {
+            // Attenuation exponent -sigma_t t / 2 (t: distance to the boundary, Eq. 24).
+            let ex = c.x * qx[i] + rx[i];
+            let ey = c.y * qy[i] + ry[i];
+            let ez = c.z * qz[i] + rz[i];
+            let e = if ex > ey { ex } else { ey };
+            let e = if ez > e { ez } else { e };
+            let e = if e > 0.0 { 0.0 } else { e };
+            // Phase: k i.x for a plane wave, -k v.x for a far-field sensor (Eqs. 19, 25).
+            let phase = kx[i] * x.x + ky[i] * x.y + kz[i] * x.z;
+            let att = fastmath::exp(e);
+            let (s, co) = fastmath::sin_cos_reduced(phase);
+            in_range &= fastmath::in_sin_cos_range(phase);
+            re[i] = att * co;
+            im[i] = att * s;
+        }
+        in_range
+    }
+}
+
+/// Coefficients `(q, r)` of one axis of the far-field attenuation exponent: for a unit exit
+/// direction with component `e`, the distance from `x` to the face it heads for is
+/// `t = (c + h sgn e) / e` (`c = center - x`, `h` the half size), so `-sigma_t t / 2 = c q + r`
+/// with `q = -sigma_t / (2 e)` and `r = -sigma_t h / (2 |e|)`; an axis with `e = 0` never exits:
+/// `q = 0`, `r = -inf`.
+pub(crate) fn far_coefficients(e: f64, h: f64, half_sigma_t: f64) -> (f64, f64) {
+    if e == 0.0 {
+        (0.0, f64::NEG_INFINITY)
+    } else {
+        (-half_sigma_t / e, -half_sigma_t * h / e.abs())
+    }
+}
