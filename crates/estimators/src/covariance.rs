@@ -5,12 +5,11 @@ use crate::connect::{Connector, coherence_factor};
 use crate::{Coherence, EstimatorError, MatrixEstimate, Scene};
 use glam::DVec3;
 use speckle_medium::Medium;
-use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
-use speckle_phase::PhaseFunction;
-use speckle_stats::{
-    BatchSum, Batches, Buffers, CANCEL_CHECK, Layout, Moments, Progress, TARGET_BATCHES,
-    run_ordered,
+use speckle_paths::{
+    FactorValue, NoFactor, PathFactor, PathRng, Tracer, TracerConfig, Vertex, VertexSink,
 };
+use speckle_phase::PhaseFunction;
+use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
 
 /// Options of a covariance render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,34 +63,57 @@ impl CovarianceEstimate {
     }
 }
 
-/// The sums of one batch: single and multiple scattering apart (Alg. 1 splits them).
-struct Batch {
-    single: BatchSum,
-    multiple: BatchSum,
+/// The scratch space of one batch: the connector and the path factor's state.
+struct Scratch<'s, M, P, S> {
+    conn: Connector<'s, M, P>,
+    state: S,
 }
 
-struct CovarianceSink<'c, 's, M, P> {
-    conn: &'c mut Connector<'s, M, P>,
-    batch: &'c mut Batch,
+/// Receives a path's vertices and adds their contributions to the batch sums `[single,
+/// multiple]` (Alg. 1 splits them), times the path factor.
+struct CovarianceSink<'a, 's, 'p, M, P, F: PathFactor> {
+    conn: &'a mut Connector<'s, M, P>,
+    state: &'a mut F::State,
+    factor: &'a F,
+    sums: &'a mut [BatchSum],
     coherence: Coherence,
-    factor: f64,
+    /// The factor 1/2 of forward-and-reversed vertices (Eq. 36) or 1.
+    half: f64,
+    poll: &'a mut Poll<'p>,
 }
 
-impl<M: Medium, P: PhaseFunction> VertexSink for CovarianceSink<'_, '_, M, P> {
+/// Adds `w f a a^H` to `sum`: Hermitian with a real factor, general with a complex one.
+#[inline]
+fn push<V: FactorValue>(sum: &mut BatchSum, a: &[num_complex::Complex64], w: f64, f: V) {
+    if V::REAL {
+        sum.push_hermitian(a, w * f.real());
+    } else {
+        sum.push(a, a, f.complex() * w);
+    }
+}
+
+impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
+    for CovarianceSink<'_, '_, '_, M, P, F>
+{
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
+        let f = self.factor.start(self.state, x1, ty);
         self.conn.first(x1, ty);
-        self.batch.single.push_hermitian(&self.conn.a, weight);
+        push(&mut self.sums[0], &self.conn.a, weight, f);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
         if v.index == 2 {
             self.conn.second(v.w12);
         }
+        let f = self.factor.vertex(self.state, v);
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
-        self.batch
-            .multiple
-            .push_hermitian(&self.conn.a, self.factor * v.weight);
+        push(&mut self.sums[1], &self.conn.a, self.half * v.weight, f);
+    }
+
+    #[inline]
+    fn keep_going(&mut self) -> bool {
+        !self.poll.cancelled()
     }
 }
 
@@ -106,7 +128,7 @@ fn check_paths(paths: u64) -> Result<(), EstimatorError> {
 }
 
 /// Renders the covariance of all pairs of `scene` (Alg. 1 with the weights of
-/// `notes/conventions.md`, derived from the sampling densities actually used).
+/// `docs/conventions.md`, derived from the sampling densities actually used).
 ///
 /// Deterministic: the same seed gives bitwise the same result for any number of threads.
 pub fn render_covariance<M: Medium, P: PhaseFunction>(
@@ -114,7 +136,21 @@ pub fn render_covariance<M: Medium, P: PhaseFunction>(
     options: &CovarianceOptions,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
-    render(scene, options, progress, Layout::Hermitian)
+    render(scene, options, &NoFactor, false, progress)
+}
+
+/// [`render_covariance`] with a per-vertex path factor: the contribution of every vertex is
+/// multiplied by `factor`'s value there (see [`PathFactor`]). A real factor keeps the Hermitian
+/// accumulation `sum w a a^H`; a complex one accumulates with complex weights, every entry of
+/// the matrix (it need not be Hermitian). With [`NoFactor`] this is [`render_covariance`],
+/// bitwise.
+pub fn render_covariance_with<M: Medium, P: PhaseFunction, F: PathFactor>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    factor: &F,
+    progress: &dyn Progress,
+) -> Result<CovarianceEstimate, EstimatorError> {
+    render(scene, options, factor, false, progress)
 }
 
 /// Renders only the diagonal of the covariance, the intensities `C[j, j] = E|u_j|^2 - |E u_j|^2`
@@ -144,62 +180,58 @@ pub fn render_intensity<M: Medium, P: PhaseFunction>(
     options: &CovarianceOptions,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
-    render(scene, options, progress, Layout::HermitianDiagonal)
+    render(scene, options, &NoFactor, true, progress)
 }
 
-fn render<M: Medium, P: PhaseFunction>(
+/// The covariance (or its diagonal) with a path factor: every estimator of this module.
+fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
     scene: &Scene<M, P>,
     options: &CovarianceOptions,
+    factor: &F,
+    diagonal: bool,
     progress: &dyn Progress,
-    layout: Layout,
 ) -> Result<CovarianceEstimate, EstimatorError> {
     check_paths(options.paths)?;
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
-    let j = scene.len();
-    let len = layout.len(j);
-    let batches = Batches::about(options.paths, TARGET_BATCHES);
-    let buffers = Buffers::default();
-    let work = |b: usize| {
-        let mut conn = Connector::new(scene);
-        let mut batch = Batch {
-            single: BatchSum::new(layout, j, &buffers),
-            multiple: BatchSum::new(layout, j, &buffers),
-        };
-        let mut sink = CovarianceSink {
-            conn: &mut conn,
-            batch: &mut batch,
-            coherence: options.coherence,
-            factor: coherence_factor(options.coherence),
-        };
-        let range = batches.range(b);
-        for path in range.clone() {
-            if path % CANCEL_CHECK == 0 && progress.cancelled() {
-                return None;
-            }
-            tracer.trace(&mut PathRng::new(options.seed, path), &mut sink);
-        }
-        progress.advance(range.end - range.start);
-        // Flushing the last blocks here keeps every batch sum complete and the merge in order.
-        let (single, multiple) = (batch.single.finish(), batch.multiple.finish());
-        Some((range.end - range.start, single, multiple))
+    let layout = match (F::Value::REAL, diagonal) {
+        (true, false) => Layout::Hermitian,
+        (true, true) => Layout::HermitianDiagonal,
+        (false, false) => Layout::General,
+        (false, true) => Layout::GeneralDiagonal,
     };
-    let new = || Moments::new(layout, j);
-    let (mut single, mut multiple, mut total) = (new(), new(), new());
-    let done = run_ordered(batches.count(), 2 * len * 16, work, |_, (n, s, m)| {
-        single.add_batch(n, &s, None);
-        multiple.add_batch(n, &m, None);
-        total.add_batch(n, &s, Some(&m));
-        buffers.give(s);
-        buffers.give(m);
-    });
-    drop(buffers);
-    if !done {
-        return Err(EstimatorError::Cancelled);
-    }
+    let init = || Scratch {
+        conn: Connector::new(scene),
+        state: F::State::default(),
+    };
+    let path = |s: &mut Scratch<M, P, F::State>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {
+        let mut sink = CovarianceSink {
+            conn: &mut s.conn,
+            state: &mut s.state,
+            factor,
+            sums,
+            coherence: options.coherence,
+            half: coherence_factor(options.coherence),
+            poll,
+        };
+        tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
+    };
+    let (parts, total) = batch_moments(
+        options.paths,
+        scene.len(),
+        layout,
+        2,
+        true,
+        init,
+        path,
+        progress,
+    )
+    .ok_or(EstimatorError::Cancelled)?;
+    let [single, multiple]: [MatrixEstimate; 2] =
+        parts.try_into().expect("two parts were estimated");
     Ok(CovarianceEstimate {
-        single: single.finish(),
-        multiple: multiple.finish(),
-        total: total.finish(),
+        single,
+        multiple,
+        total: total.expect("the total was estimated"),
         paths: options.paths,
     })
 }
@@ -215,33 +247,24 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
 ) -> Result<MatrixEstimate, EstimatorError> {
     check_paths(options.paths)?;
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
-    let j = scene.len();
-    let batches = Batches::about(options.paths, TARGET_BATCHES);
-    let buffers = Buffers::default();
-    let work = |b: usize| {
-        let mut conn = Connector::new(scene);
-        let mut sum = BatchSum::new(Layout::Hermitian, j, &buffers);
-        let range = batches.range(b);
-        for path in range.clone() {
-            if path % CANCEL_CHECK == 0 && progress.cancelled() {
-                return None;
-            }
-            let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, path));
-            conn.first(x1, ty);
-            sum.push_hermitian(&conn.a, w);
-        }
-        progress.advance(range.end - range.start);
-        Some((range.end - range.start, sum.finish()))
+    let init = || Connector::new(scene);
+    let path = |conn: &mut Connector<M, P>, n: u64, sums: &mut [BatchSum], _: &mut Poll| {
+        let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, n));
+        conn.first(x1, ty);
+        sums[0].push_hermitian(&conn.a, w);
     };
-    let mut m = Moments::new(Layout::Hermitian, j);
-    if !run_ordered(batches.count(), j * j * 16, work, |_, (n, s)| {
-        m.add_batch(n, &s, None);
-        buffers.give(s);
-    }) {
-        return Err(EstimatorError::Cancelled);
-    }
-    drop(buffers);
-    Ok(m.finish())
+    let (mut parts, _) = batch_moments(
+        options.paths,
+        scene.len(),
+        Layout::Hermitian,
+        1,
+        false,
+        init,
+        path,
+        progress,
+    )
+    .ok_or(EstimatorError::Cancelled)?;
+    Ok(parts.remove(0))
 }
 
 #[cfg(test)]
@@ -302,6 +325,132 @@ mod tests {
                     for q in 0..j {
                         assert_eq!(full.value.get(r, q), full.value.get(q, r).conj());
                     }
+                }
+            }
+        }
+    }
+
+    /// A test factor: `value` at every contribution of a vertex `x_b` with `b <= keep` (`x1`
+    /// has `b = 1`), zero beyond.
+    struct Window<V> {
+        keep: u32,
+        value: V,
+        zero: V,
+    }
+
+    impl<V: FactorValue> PathFactor for Window<V> {
+        type State = ();
+        type Value = V;
+        fn start(&self, _: &mut (), _: DVec3, _: usize) -> V {
+            self.value
+        }
+        fn vertex(&self, _: &mut (), v: &Vertex) -> V {
+            if v.index <= self.keep {
+                self.value
+            } else {
+                self.zero
+            }
+        }
+    }
+
+    fn bits(m: &MatrixEstimate) -> Vec<(u64, u64)> {
+        m.value
+            .as_slice()
+            .iter()
+            .chain(m.std_error.as_slice())
+            .map(|z| (z.re.to_bits(), z.im.to_bits()))
+            .collect()
+    }
+
+    /// A per-vertex factor of 1 at every vertex reproduces the covariance bitwise (values and
+    /// standard errors of every part); a factor that zeroes every vertex beyond `x2`
+    /// reproduces, bitwise, the render whose paths are truncated after two vertices
+    /// (`max_vertices = 2`), an independent route to the same sum.
+    #[test]
+    fn real_path_factors_are_exact_reweightings() {
+        let s = scene();
+        let opts = CovarianceOptions {
+            paths: 3001,
+            seed: 9,
+            ..Default::default()
+        };
+        let plain = render_covariance(&s, &opts, &NoProgress).unwrap();
+        let one = Window {
+            keep: u32::MAX,
+            value: 1.0,
+            zero: 0.0,
+        };
+        let with_one = render_covariance_with(&s, &opts, &one, &NoProgress).unwrap();
+        for (a, b) in [
+            (&plain.total, &with_one.total),
+            (&plain.single, &with_one.single),
+            (&plain.multiple, &with_one.multiple),
+        ] {
+            assert_eq!(bits(a), bits(b));
+        }
+        let two = Window {
+            keep: 2,
+            value: 1.0,
+            zero: 0.0,
+        };
+        let windowed = render_covariance_with(&s, &opts, &two, &NoProgress).unwrap();
+        let truncated = CovarianceOptions {
+            sampling: TracerConfig {
+                max_vertices: 2,
+                ..TracerConfig::default()
+            },
+            ..opts
+        };
+        let short = render_covariance(&s, &truncated, &NoProgress).unwrap();
+        assert_eq!(bits(&windowed.total), bits(&short.total));
+        // And the window removed something: the truncated multiple scattering is smaller.
+        assert!(short.multiple.value.get(0, 0).re < plain.multiple.value.get(0, 0).re);
+    }
+
+    /// A complex factor goes through the general (complex-weight, every entry) accumulation: a
+    /// constant phase `e^{i theta}` on every contribution gives `e^{i theta} C`, entry by entry,
+    /// to rounding, with the standard errors of the rotated sum; and `1 + 0i` gives `C` to
+    /// rounding, in both the full and the diagonal layout.
+    #[test]
+    fn complex_path_factors_use_the_general_accumulation() {
+        let s = scene();
+        let opts = CovarianceOptions {
+            paths: 3001,
+            seed: 9,
+            ..Default::default()
+        };
+        let plain = render_covariance(&s, &opts, &NoProgress).unwrap();
+        let theta = 0.7f64;
+        let phase = Complex64::from_polar(1.0, theta);
+        for (value, rot) in [(Complex64::ONE, Complex64::ONE), (phase, phase)] {
+            let f = Window {
+                keep: u32::MAX,
+                value,
+                zero: Complex64::ZERO,
+            };
+            let c = render_covariance_with(&s, &opts, &f, &NoProgress).unwrap();
+            let j = s.len();
+            let scale = plain.total.value.get(0, 0).re;
+            for r in 0..j {
+                for q in 0..j {
+                    let want = rot * plain.total.value.get(r, q);
+                    let got = c.total.value.get(r, q);
+                    assert!(
+                        (got - want).norm() < 1e-12 * scale,
+                        "({r},{q}): {got} vs {want}"
+                    );
+                }
+            }
+            if value == Complex64::ONE {
+                // The standard errors agree to rounding too (same batches, same sums).
+                for (x, y) in c
+                    .total
+                    .std_error
+                    .as_slice()
+                    .iter()
+                    .zip(plain.total.std_error.as_slice())
+                {
+                    assert!((x - y).norm() < 1e-9 * scale, "{x} vs {y}");
                 }
             }
         }

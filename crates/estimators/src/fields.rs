@@ -7,7 +7,7 @@ use num_complex::Complex64;
 use speckle_medium::Medium;
 use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
-use speckle_stats::{Batches, CANCEL_CHECK, Progress, run_ordered};
+use speckle_stats::{Batches, Poll, Progress, for_each_path, run_ordered};
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -75,11 +75,12 @@ fn paths_per_item(n: u64, tile: &Tile) -> u64 {
     n.div_ceil(n.div_ceil(size))
 }
 
-struct FieldSink<'c, 's, M, P> {
+struct FieldSink<'c, 's, 'p, M, P> {
     conn: &'c mut Connector<'s, M, P>,
     u: &'c mut Cvec,
     coherence: Coherence,
     factor: f64,
+    poll: &'c mut Poll<'p>,
 }
 
 #[inline]
@@ -87,7 +88,7 @@ fn random_phase(rng: &mut PathRng) -> Complex64 {
     Complex64::from_polar(1.0, TAU * rng.next_f64())
 }
 
-impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
+impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, '_, M, P> {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng) {
         // Single scattering: z sqrt(sigma_s / q_o) F, so that E[u u^H] gains (sigma_s / q_o) F F^H
         // as in Alg. 1. (Alg. 2 prints sqrt(V/2) here, which would halve single scattering.)
@@ -102,6 +103,20 @@ impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, M, P> {
         let z = random_phase(rng) * (self.factor * v.weight).sqrt();
         self.conn
             .add_vertex(v.x, v.w_in, v.ty, self.coherence, z, self.u);
+    }
+
+    #[inline]
+    fn keep_going(&mut self) -> bool {
+        !self.poll.cancelled()
+    }
+}
+
+/// A [`Progress`] that forwards cancellation but counts nothing.
+struct Silent<'a>(&'a dyn Progress);
+
+impl Progress for Silent<'_> {
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
     }
 }
 
@@ -174,23 +189,24 @@ fn render<M: Medium, P: PhaseFunction>(
         let (r, b, t) = split(item);
         let mut conn = Connector::for_tile(scene, &tiles[t]);
         let mut u = Cvec::zeros(tiles[t].len());
-        let mut sink = FieldSink {
-            conn: &mut conn,
-            u: &mut u,
-            coherence: options.coherence,
-            factor: coherence_factor(options.coherence),
-        };
         let range = per.range(b);
-        for path in range.clone() {
-            if path % CANCEL_CHECK == 0 && progress.cancelled() {
-                return None;
-            }
+        // Progress counts a realization's paths once, with its last tile.
+        let counted: &dyn Progress = if t + 1 == nt {
+            progress
+        } else {
+            &Silent(progress)
+        };
+        for_each_path(range, counted, |path, poll| {
+            let mut sink = FieldSink {
+                conn: &mut conn,
+                u: &mut u,
+                coherence: options.coherence,
+                factor: coherence_factor(options.coherence),
+                poll,
+            };
             let stream = r as u64 * n + path;
             tracer.trace(&mut PathRng::new(options.seed, stream), &mut sink);
-        }
-        if t + 1 == nt {
-            progress.advance(range.end - range.start);
-        }
+        })?;
         Some(u)
     };
     let mut fields = CMatrix::zeros(options.realizations, j);

@@ -45,8 +45,8 @@ mod covariance;
 mod fields;
 
 pub use covariance::{
-    CovarianceEstimate, CovarianceOptions, render_covariance, render_intensity,
-    render_single_scattering,
+    CovarianceEstimate, CovarianceOptions, render_covariance, render_covariance_with,
+    render_intensity, render_single_scattering,
 };
 pub use fields::{FieldEstimate, FieldOptions, render_fields};
 // The types every caller of the estimators handles, defined in the crates below.

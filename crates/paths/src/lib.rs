@@ -22,10 +22,12 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod factor;
 mod first;
 
 mod tracer;
 
+pub use factor::{FactorValue, NoFactor, PathFactor};
 pub use first::{FirstDirection, FirstVertex};
 pub use speckle_stats::PathRng;
 pub use tracer::{Tracer, TracerConfig, Vertex, VertexSink};

@@ -58,6 +58,12 @@ pub trait VertexSink {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng);
     /// A vertex `x_b`, `b >= 2`.
     fn vertex(&mut self, v: &Vertex, rng: &mut PathRng);
+    /// Asked before every flight: `false` ends the path there (a cancelled render stops inside
+    /// a long path instead of finishing it). The default always continues.
+    #[inline]
+    fn keep_going(&mut self) -> bool {
+        true
+    }
 }
 
 /// Samples sub-paths in a medium with a phase function (Alg. 1, with roulette at every `b >= 2`).
@@ -162,7 +168,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         }
         let weight = w_single / p_w;
         let (mut x, mut dir, mut b) = (x1, w12, 1u32);
-        while b < self.max_vertices {
+        while b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
                 break;
             };

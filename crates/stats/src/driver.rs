@@ -1,11 +1,18 @@
-//! Deterministic parallel execution: fixed batches, merged in batch order.
+//! The one batch driver of every estimator and of the wave solver: fixed batches, run in
+//! parallel, merged in batch order, with cancellation and progress.
 //!
-//! Batch boundaries depend only on the number of paths, every path draws from the stream of its
-//! global index, and batch results are merged sequentially in batch order. So the output is
-//! bitwise identical for any number of threads. Batches run in parallel in chunks, whose size is
-//! bounded by a memory budget.
+//! Batch boundaries depend only on the number of paths (or configurations), every path draws
+//! from the stream of its global index, and batch results are merged sequentially in batch
+//! order. So the output is bitwise identical for any number of threads. Batches run in parallel
+//! in chunks, whose size is bounded by a memory budget ([`run_ordered`]); inside a batch,
+//! [`for_each_path`] runs the paths and polls for cancellation ([`Poll`]) often enough that a
+//! render stops within milliseconds even when single paths are long; [`batch_moments`] is the
+//! whole batch-means estimate of sums over paths.
 
+use crate::{BatchSum, Buffers, Layout, MatrixEstimate, Moments};
+use num_complex::Complex64;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Reports progress of a long render and lets the caller cancel it.
 pub trait Progress: Sync {
@@ -27,8 +34,147 @@ impl Progress for NoProgress {}
 /// the standard error has `BATCHES - 1` degrees of freedom).
 pub const TARGET_BATCHES: u64 = 128;
 
-/// Paths between two checks for cancellation inside a batch.
-pub const CANCEL_CHECK: u64 = 256;
+/// Calls of [`Poll::cancelled`] between two questions to [`Progress::cancelled`]: about a
+/// microsecond of work per call (a path, or a vertex), so a render notices a cancellation
+/// within about a millisecond per thread.
+pub const POLL_INTERVAL: u32 = 1024;
+
+/// Cancellation polling for the inner loops of a batch: cheap to call per path or per vertex,
+/// it asks the [`Progress`] once every [`POLL_INTERVAL`] calls and remembers a cancellation.
+pub struct Poll<'p> {
+    progress: &'p dyn Progress,
+    countdown: u32,
+    cancelled: bool,
+}
+
+impl<'p> Poll<'p> {
+    /// Polls `progress`, asking it at once.
+    pub fn new(progress: &'p dyn Progress) -> Self {
+        Self {
+            progress,
+            countdown: POLL_INTERVAL,
+            cancelled: progress.cancelled(),
+        }
+    }
+
+    /// Whether the render was cancelled (asked of the [`Progress`] every [`POLL_INTERVAL`]
+    /// calls).
+    #[inline]
+    pub fn cancelled(&mut self) -> bool {
+        if !self.cancelled {
+            self.countdown -= 1;
+            if self.countdown == 0 {
+                self.countdown = POLL_INTERVAL;
+                self.cancelled = self.progress.cancelled();
+            }
+        }
+        self.cancelled
+    }
+}
+
+/// Runs `path(n, poll)` for every path index `n` of `range`, in order, and reports the paths to
+/// `progress` when done; returns `None`, without reporting, as soon as the render is cancelled
+/// (`path` may poll inside a long path too, and return early).
+pub fn for_each_path(
+    range: Range<u64>,
+    progress: &dyn Progress,
+    mut path: impl FnMut(u64, &mut Poll),
+) -> Option<()> {
+    let mut poll = Poll::new(progress);
+    for n in range.clone() {
+        if poll.cancelled() {
+            return None;
+        }
+        path(n, &mut poll);
+    }
+    if poll.cancelled {
+        return None;
+    }
+    progress.advance(range.end - range.start);
+    Some(())
+}
+
+/// The batch-means estimate of `parts` sums over `paths` paths (for example the single- and
+/// multiple-scattering parts of a covariance): the paths are cut into about
+/// [`TARGET_BATCHES`] batches; each batch makes its state with `init` (scratch space such as a
+/// connector) and calls `path(state, n, sums, poll)` for each of its paths `n` in order, which
+/// adds path `n` into one [`BatchSum`] per part (all of `layout`, vectors of length `j`) and may
+/// poll for cancellation inside the path; the batch sums are merged in batch order into
+/// [`Moments`].
+///
+/// Returns the estimate of every part and, if `with_total`, of their sum (whose standard errors
+/// account for the correlation of the parts within a path); `None` if cancelled.
+#[allow(clippy::too_many_arguments)]
+pub fn batch_moments<S, I, W>(
+    paths: u64,
+    j: usize,
+    layout: Layout,
+    parts: usize,
+    with_total: bool,
+    init: I,
+    path: W,
+    progress: &dyn Progress,
+) -> Option<(Vec<MatrixEstimate>, Option<MatrixEstimate>)>
+where
+    I: Fn() -> S + Sync,
+    W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
+{
+    let batches = Batches::about(paths, TARGET_BATCHES);
+    let buffers = Buffers::default();
+    let run = |b: usize| {
+        let range = batches.range(b);
+        let mut sums: Vec<BatchSum> = (0..parts)
+            .map(|_| BatchSum::new(layout, j, &buffers))
+            .collect();
+        let mut state = init();
+        for_each_path(range.clone(), progress, |n, poll| {
+            path(&mut state, n, &mut sums, poll)
+        })?;
+        // Flushing the last blocks here keeps every batch sum complete and the merge in order.
+        let sums: Vec<Vec<Complex64>> = sums.into_iter().map(BatchSum::finish).collect();
+        Some((range.end - range.start, sums))
+    };
+    let mut moments: Vec<Moments> = (0..parts).map(|_| Moments::new(layout, j)).collect();
+    let mut total = (with_total && parts > 1).then(|| Moments::new(layout, j));
+    let bytes = parts.max(1) * layout.len(j) * 16;
+    let done = run_ordered(batches.count(), bytes, run, |_, (n, sums)| {
+        for (m, s) in moments.iter_mut().zip(&sums) {
+            m.add_batch(n, s, None);
+        }
+        if let Some(t) = &mut total {
+            // Two parts are summed entry by entry inside the moments (as the covariance always
+            // did); more are added up first.
+            match sums.as_slice() {
+                [a, b] => t.add_batch(n, a, Some(b)),
+                _ => {
+                    let mut sum = sums[0].clone();
+                    for s in &sums[1..] {
+                        for (x, y) in sum.iter_mut().zip(s) {
+                            *x += y;
+                        }
+                    }
+                    t.add_batch(n, &sum, None);
+                }
+            }
+        }
+        for s in sums {
+            buffers.give(s);
+        }
+    });
+    if !done {
+        return None;
+    }
+    let parts: Vec<MatrixEstimate> = moments.into_iter().map(Moments::finish).collect();
+    let total = if with_total {
+        Some(match total {
+            Some(t) => t.finish(),
+            None => parts[0].clone(),
+        })
+    } else {
+        None
+    };
+    Some((parts, total))
+}
 
 /// Memory allowed for batch results held at once.
 const MEMORY_BUDGET: usize = 1 << 30;
@@ -65,7 +211,7 @@ impl Batches {
     }
 
     /// The paths of batch `b`.
-    pub fn range(&self, b: usize) -> std::ops::Range<u64> {
+    pub fn range(&self, b: usize) -> Range<u64> {
         let start = b as u64 * self.size;
         start..(start + self.size).min(self.total)
     }

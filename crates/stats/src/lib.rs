@@ -21,7 +21,10 @@ mod moments;
 pub mod rng;
 
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
-pub use driver::{Batches, CANCEL_CHECK, NoProgress, Progress, TARGET_BATCHES, run_ordered};
+pub use driver::{
+    Batches, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES, batch_moments,
+    for_each_path, run_ordered,
+};
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};
 pub use moments::{BatchSum, Buffers, Layout, Moments};

@@ -3,9 +3,8 @@
 use crate::solve::{check_scene, expected_scatterers, sample_scatterers, solve_checked};
 use crate::{WaveError, WaveScene};
 use num_complex::Complex64;
-use rayon::prelude::*;
 use speckle_stats::PathRng;
-use speckle_stats::{CMatrix, MatrixEstimate, Progress, empirical_moments};
+use speckle_stats::{CMatrix, MatrixEstimate, Progress, empirical_moments, run_ordered};
 
 /// Options of [`render_wave`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,18 +41,15 @@ pub struct WaveEstimate {
 /// The fields of one configuration and its number of scatterers.
 type Solved = Result<(Vec<Complex64>, usize), WaveError>;
 
-/// Memory the Foldy-Lax matrices of configurations solved at the same time may take.
-const MEMORY_BUDGET: f64 = 4.0 * (1u64 << 30) as f64;
-
 /// Solves `R` independent configurations of `scene` exactly and returns their fields with
 /// their empirical mean and covariance.
 ///
 /// Configuration `r` draws its scatterers ([`crate::sample_scatterers`]) from the
 /// counter-based stream `PathRng::new(seed, r)` and is solved sequentially
-/// ([`crate::solve`]); configurations run in parallel on the rayon pool, in chunks small enough
-/// that their matrices fit in 4 GiB, and are collected in configuration order. So the result
-/// is bitwise the same for any number of threads. `progress` advances by one per configuration
-/// and is asked for cancellation before each.
+/// ([`crate::solve`]); configurations run in parallel on the rayon pool through the batch
+/// driver of `speckle-stats` (one Foldy-Lax matrix per thread at a time) and are collected in
+/// configuration order. So the result is bitwise the same for any number of threads. `progress`
+/// advances by one per configuration and is asked for cancellation before each.
 ///
 /// Errors name the offending input: `configurations` (fewer than 2), `medium.sigma_a`,
 /// `phase`, `medium` (too many scatterers), or [`WaveError::Cancelled`].
@@ -91,36 +87,34 @@ pub fn render_wave(
         });
     }
     let j = scene.len();
-    // A generous bound on the matrix size of one configuration (mean + 5 standard deviations).
-    let n_high = expected + 5.0 * expected.sqrt() + 1.0;
-    let by_memory = (MEMORY_BUDGET / (16.0 * n_high * n_high)).floor().max(1.0) as usize;
-    let chunk = (4 * rayon::current_num_threads()).min(by_memory).max(1);
-
     let mut fields = CMatrix::zeros(r, j);
     let mut counts = Vec::with_capacity(r);
-    let mut start = 0;
-    while start < r {
-        let end = (start + chunk).min(r);
-        // Per configuration: None when cancelled, else its fields and scatterer count.
-        let results: Vec<Option<Solved>> = (start..end)
-            .into_par_iter()
-            .map(|c| {
-                if progress.cancelled() {
-                    return None;
-                }
-                let solved = sample_scatterers(scene, &mut PathRng::new(options.seed, c as u64))
-                    .and_then(|o| Ok((solve_checked(scene, kernel, &o)?, o.len())));
-                progress.advance(1);
-                Some(solved)
-            })
-            .collect();
-        for (offset, result) in results.into_iter().enumerate() {
-            let (u, n) = result.ok_or(WaveError::Cancelled)??;
-            let row = start + offset;
+    let mut failure = None;
+    // One configuration per work item; each holds its Foldy-Lax matrix (16 N^2 bytes) only
+    // while a thread solves it, so at most one per thread exists at a time.
+    let work = |c: usize| {
+        if progress.cancelled() {
+            return None;
+        }
+        let solved = sample_scatterers(scene, &mut PathRng::new(options.seed, c as u64))
+            .and_then(|o| Ok((solve_checked(scene, kernel, &o)?, o.len())));
+        progress.advance(1);
+        Some(solved)
+    };
+    let done = run_ordered(r, 16 * j, work, |row, solved: Solved| match solved {
+        Ok((u, n)) => {
             fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
             counts.push(n);
         }
-        start = end;
+        Err(e) => {
+            failure.get_or_insert(e);
+        }
+    });
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    if !done {
+        return Err(WaveError::Cancelled);
     }
     let moments = empirical_moments(&fields)?;
     let mean_scatterers = counts.iter().sum::<usize>() as f64 / r as f64;
