@@ -1,14 +1,15 @@
-//! Criterion benchmarks of the covariance accumulation (issue 5): the Hermitian rank-`K` update
-//! of `speckle_estimators::HermitianBlock` against the single-thread complex GEMM peak of faer
-//! and against the rank-1 updates it replaced, and end-to-end covariance renders.
+//! Criterion benchmarks of the covariance accumulation: the Hermitian rank-`K` update of
+//! `speckle_stats::HermitianBlock` and the general complex-weight update `sum w a b^H` of
+//! `speckle_stats::GeneralBlock` against the single-thread complex GEMM peak of faer and against
+//! the rank-1 updates they replaced, and end-to-end covariance renders.
 //!
 //! Throughputs of the `gemm_peak`, `rank_k`, `rank_1`, `crossover` and `rank_k_depth` groups are
 //! flops: an "element" is one floating-point operation, so criterion's `Gelem/s` reads GFLOP/s.
 //! A complex multiply-add counts 8 flops; a full `M x N x K` product is `8 M N K` flops, and an
 //! update of the upper triangle of a `J x J` sum by `n` vectors counts `8 J^2 n / 2` (the
 //! triangle, as the issue counts it; the diagonal's extra `J/2` entries per vector are not
-//! counted). The rank-1 updates count the same flops for the same sum, so the two read as speeds
-//! of one job.
+//! counted). The general update fills every entry: `8 J^2 n` flops (`rank_k_general`). The
+//! rank-1 updates count the same flops for the same sum, so the two read as speeds of one job.
 //!
 //! Everything here except `end_to_end` runs on one thread (faer with `Par::Seq`). Fixed inputs:
 //! vectors from a fixed xorshift sequence, renders with seed 1. Run with
@@ -21,7 +22,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use faer::{Accum, Mat, Par};
 use num_complex::Complex64;
 use speckle::estimators::{Coherence, CovarianceOptions, NoProgress, render_covariance};
-use speckle::stats::{BLOCK_COLUMNS, HermitianBlock, rank1_upper};
+use speckle::stats::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_upper};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -117,6 +118,27 @@ fn accumulation(c: &mut Criterion) {
         }
         g.finish();
     }
+    // The general update: complex weights, two different vectors, every entry.
+    let mut g = c.benchmark_group("estimators/accumulate/rank_k_general");
+    g.sample_size(20).measurement_time(Duration::from_secs(4));
+    for j in [64, 256, 1024] {
+        let v = vectors(j, PUSHED);
+        let b = vectors(j, PUSHED);
+        let w: Vec<Complex64> = numbers(PUSHED, 99);
+        let mut m = vec![Complex64::ZERO; j * j];
+        let mut acc = GeneralBlock::new(j, BLOCK_COLUMNS);
+        g.throughput(Throughput::Elements((8 * j * j * PUSHED) as u64));
+        g.bench_function(BenchmarkId::from_parameter(format!("J={j}")), |bch| {
+            bch.iter(|| {
+                for (((a, _), (bv, _)), w) in v.iter().zip(&b).zip(&w) {
+                    acc.push(&mut m, a, bv, *w);
+                }
+                acc.flush(&mut m);
+                black_box(&m);
+            })
+        });
+    }
+    g.finish();
 }
 
 /// Where the block starts to pay: both accumulations at small `J` (`PUSHED` vectors).

@@ -1,6 +1,6 @@
 //! Field sampler (Alg. 2, Sec. 5.2): the empirical covariance of many sampled fields matches the
 //! covariance estimator (Alg. 1), the intensity covariance of the sampled fields matches
-//! `|C|^2` (Siegert, `notes/conventions.md`: `|C|^2`, not `2 |C|^2`), and the speckle mean is
+//! `|C|^2` (Siegert, `docs/conventions.md`: `|C|^2`, not `2 |C|^2`), and the speckle mean is
 //! added when asked for.
 //!
 //! Run time (release, 2 cores): about 3 s.

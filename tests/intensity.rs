@@ -1,7 +1,7 @@
 //! Intensity (`i1 = i2`, `v1 = v2`, forward paths only) agrees with an independent incoherent
 //! volumetric path tracer written here (plain radiance transport) within 4 standard errors.
 //!
-//! In the units of `notes/conventions.md`, the far-field intensity `|A(v)|^2` of a unit plane
+//! In the units of `docs/conventions.md`, the far-field intensity `|A(v)|^2` of a unit plane
 //! wave is the radiant intensity (W/sr) scattered toward `v` per unit incident irradiance
 //! (W/m^2), and the intensity `|u(q)|^2` at a point sensor is the scattered irradiance-like
 //! quantity `sum (radiant intensity toward q) exp(-od) / r^2` per unit incident irradiance. So

@@ -3,7 +3,7 @@
 //! For a slab, the covariance of the fields under illumination tilts and sensor tilts peaks on
 //! the shifted diagonal `v_b - v_a = i_2 - i_1` (lateral momentum conservation), and its height
 //! decays with `k theta L`; in a thick isotropic slab the normalised intensity correlation
-//! `|C_12|^2 / (C_11 C_22)` (Siegert, `notes/conventions.md`) follows the diffusion curve
+//! `|C_12|^2 / (C_11 C_22)` (Siegert, `docs/conventions.md`) follows the diffusion curve
 //! `(k theta L)^2 / sinh^2(k theta L)` of Eq. 39.
 //!
 //! Every standard error here is a jackknife over 16 independent renders (seeds `s .. s + 15`),

@@ -5,7 +5,7 @@
 //! Gauss-Legendre in z, y, x, panels of a quarter or an eighth of a wavelength, split at the kinks
 //! of the attenuation, where a segment's exit face changes, so that it converges fast) of
 //! `C[(i1,v1),(i2,v2)] = s(i1.v1) s(i2.v2)^* int sigma_s ups(i1->x) ups(x->v1) (ups(i2->x) ups(x->v2))^* dx`
-//! (Bar et al. 2019, Eq. 41, absolute units of `notes/conventions.md`), with the attenuations and
+//! (Bar et al. 2019, Eq. 41, absolute units of `docs/conventions.md`), with the attenuations and
 //! phases computed here from the geometry (plane wave: `exp(-sigma_t d/2) exp(i k i.x)` with `d`
 //! the distance from `x` back along `-i` to the boundary; far field: `exp(-sigma_t d/2)
 //! exp(-i k v.x)` with `d` along `+v`; point endpoints: the part of the segment inside the box,

@@ -1,6 +1,6 @@
 //! Speckle mean, covariance and field estimators (Bar et al. 2019, Secs. 4-5, 7).
 //!
-//! All estimates are in the absolute units of `notes/conventions.md`: a plane wave has unit
+//! All estimates are in the absolute units of `docs/conventions.md`: a plane wave has unit
 //! amplitude, a point source is `e^{ikr}/r`, a far-field sensor reports the scattering amplitude
 //! `A(v)` of `u(R v) = A(v) e^{ikR}/R`, a point sensor the field value. In flatland (a medium in
 //! an [`speckle_medium::Aabb::flat`] rectangle with a flatland phase function) the same code runs

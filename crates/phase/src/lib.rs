@@ -2,7 +2,7 @@
 //!
 //! A scatterer's angular behaviour is its complex scattering amplitude `s(cos theta)`, normalised
 //! so that the phase function `rho = |s|^2` integrates to one over the sphere (Bar et al. 2019,
-//! Eq. 1 and `notes/conventions.md`). Intensity rendering needs only `rho`; speckle rendering needs
+//! Eq. 1 and `docs/conventions.md`). Intensity rendering needs only `rho`; speckle rendering needs
 //! `s` itself, because covariance terms multiply amplitudes of different angles.
 //!
 //! Design decision: every model implements [`PhaseFunction`] (`&self`, driven by uniform variates,

@@ -6,7 +6,7 @@
 //! it draws explicit scatterer positions, solves the wave equation for each configuration with
 //! all orders of scattering (and all dependent-scattering effects), and averages. It is the
 //! reference the Monte Carlo is checked against, in the absolute units of
-//! `notes/conventions.md`.
+//! `docs/conventions.md`.
 //!
 //! # Physics
 //!
