@@ -209,17 +209,7 @@ pub fn exp_slice(x: &[f64], y: &mut [f64]) {
 mod tests {
     use super::*;
 
-    /// A fixed-seed SplitMix64 stream of uniform variates in `[0, 1)`.
-    fn uniform(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
+    use speckle_stats::rng::uniform_stream as uniform;
 
     /// Distance in units in the last place between two finite doubles of the same sign.
     fn ulps(a: f64, b: f64) -> u64 {

@@ -317,18 +317,7 @@ pub mod testing {
         (2.0 * PI * h / 3.0 * m0, 2.0 * PI * h / 3.0 * m1)
     }
 
-    /// A fixed-seed SplitMix64 stream of uniform variates in `[0, 1)` (keeps this crate free of
-    /// an RNG dependency).
-    pub fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
+    pub use speckle_stats::rng::uniform_stream;
 
     /// `sqrt(n) * D`, the Kolmogorov-Smirnov distance of the samples `xs` from the CDF `f`.
     pub fn ks_distance(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {

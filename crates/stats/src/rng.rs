@@ -62,6 +62,9 @@ pub(crate) fn philox4x32_10(mut c: [u32; 4], mut k: [u32; 2]) -> [u32; 4] {
     c
 }
 
+/// The SplitMix64 increment, `2^64 / phi`.
+pub const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// The SplitMix64 output function (Steele, Lea and Flood, *Fast splittable pseudorandom number
 /// generators*, OOPSLA 2014): a bijective 64-bit mixer.
 #[inline]
@@ -83,7 +86,17 @@ pub fn splitmix64(mut z: u64) -> u64 {
 /// ```
 #[inline]
 pub fn derive_seed(seed: u64, index: u64) -> u64 {
-    splitmix64(seed.wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(index.wrapping_add(1))))
+    splitmix64(seed.wrapping_add(GOLDEN_GAMMA.wrapping_mul(index.wrapping_add(1))))
+}
+
+/// The SplitMix64 sequence seeded with `seed` as uniform variates in `[0, 1)` (53 bits): a
+/// cheap fixed stream for tests and deterministic initialisations, which need no Philox key.
+pub fn uniform_stream(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state.wrapping_add(GOLDEN_GAMMA);
+        (splitmix64(state) >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
 }
 
 impl PathRng {

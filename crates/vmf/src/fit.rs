@@ -4,6 +4,7 @@
 use crate::VmfError;
 use crate::algebra::{inverse_mean_resultant_length, ln_vmf_normaliser};
 use crate::mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfMixture};
+use speckle_stats::rng::{GOLDEN_GAMMA, splitmix64};
 use std::f64::consts::PI;
 
 /// Options of [`fit_amplitude`] and [`fit_amplitude_fixed`]. Build with `Default` and struct
@@ -584,12 +585,7 @@ impl Problem {
 
 /// `|N(0, 1)|` from a counter-based hash of `(seed, k, m)` (SplitMix64 finaliser, Box-Muller).
 fn half_normal(seed: u64, k: u64, m: u64) -> f64 {
-    let mix = |mut z: u64| {
-        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
+    let mix = |z: u64| splitmix64(z.wrapping_add(GOLDEN_GAMMA));
     let base = mix(seed ^ mix(k.wrapping_mul(0x1000_0000_01B3) ^ mix(m)));
     let unit = |z: u64| ((z >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64);
     let (u1, u2) = (unit(mix(base)), unit(mix(base ^ 0xD6E8_FEB8_6659_FD93)));
