@@ -40,7 +40,8 @@
 //!
 //! **Foldy-Lax equations.** For scatterers `o_1..o_N`, the exciting fields satisfy
 //! `psi_n = u_inc(o_n) + sum_{m != n} tau G(o_n - o_m) psi_m`, i.e.
-//! `(I - tau G_offdiag) psi = u_inc`: one dense complex LU per configuration (faer, partial
+//! `(I - tau G_offdiag) psi = u_inc`: one dense complex LU per configuration ([`lu`]: blocked,
+//! cancellable, on faer's kernels; partial
 //! pivoting, sequential), reused for every source as a right-hand side. The total field is
 //! `u(x) = u_inc(x) + sum_n tau G(x - o_n) psi_n`. `G_offdiag` is symmetric, which makes the
 //! solution reciprocal.
@@ -92,6 +93,7 @@
 
 pub mod bessel;
 mod kernel;
+pub mod lu;
 mod render;
 mod solve;
 

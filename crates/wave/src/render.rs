@@ -96,8 +96,11 @@ pub fn render_wave(
         if progress.cancelled() {
             return None;
         }
-        let solved = sample_scatterers(scene, &mut PathRng::new(options.seed, c as u64))
-            .and_then(|o| Ok((solve_checked(scene, kernel, &o)?, o.len())));
+        let solved =
+            sample_scatterers(scene, &mut PathRng::new(options.seed, c as u64)).and_then(|o| {
+                let cancelled = || progress.cancelled();
+                Ok((solve_checked(scene, kernel, &o, &cancelled)?, o.len()))
+            });
         progress.advance(1);
         Some(solved)
     };

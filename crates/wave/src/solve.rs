@@ -1,9 +1,8 @@
 //! One configuration: Poisson-distributed scatterers and the dense Foldy-Lax solve.
 
+use crate::lu;
 use crate::{Kernel, WaveError};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::lu::partial_pivoting::{factor, solve as lu_solve};
-use faer::{Mat, Par};
+use faer::Mat;
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_endpoints::{FreeSpace, direct_field, incident_field, sensor_response};
@@ -186,14 +185,16 @@ fn check_positions(scene: &WaveScene, scatterers: &[DVec3]) -> Result<(), WaveEr
 pub fn solve(scene: &WaveScene, scatterers: &[DVec3]) -> Result<Vec<Complex64>, WaveError> {
     let kernel = check_scene(scene)?;
     check_positions(scene, scatterers)?;
-    solve_checked(scene, kernel, scatterers)
+    solve_checked(scene, kernel, scatterers, &|| false)
 }
 
 /// [`solve`] after the checks of the scene and of the positions' values.
+/// `cancelled` is asked between the steps of the factorisation ([`crate::lu`]).
 pub(crate) fn solve_checked(
     scene: &WaveScene,
     kernel: Kernel,
     scatterers: &[DVec3],
+    cancelled: &dyn Fn() -> bool,
 ) -> Result<Vec<Complex64>, WaveError> {
     let n = scatterers.len();
     let space = Space::new(kernel);
@@ -230,7 +231,8 @@ pub(crate) fn solve_checked(
                 a[(j, i)] = v;
             }
         }
-        lu_solve_in_place(a, psi.as_mut());
+        let swaps = lu::factorise(&mut a, cancelled).ok_or(WaveError::Cancelled)?;
+        lu::solve(&a, &swaps, psi.as_mut());
         if let Some((i, s)) = (0..n)
             .flat_map(|i| (0..sources.len()).map(move |s| (i, s)))
             .find(|&(i, s)| !psi[(i, s)].is_finite())
@@ -318,68 +320,5 @@ impl FreeSpace for Space {
     }
     fn scattering_amplitude(&self) -> Complex64 {
         self.far
-    }
-}
-
-/// Solves `A X = B` in place of `B` with one LU factorisation of `A` (partial pivoting),
-/// sequentially: callers run configurations in parallel, and faer's own threads would compete
-/// with them.
-fn lu_solve_in_place(mut a: Mat<Complex64>, mut b: faer::MatMut<'_, Complex64>) {
-    let n = a.nrows();
-    let par = Par::Seq;
-    let mut perm = vec![0usize; n];
-    let mut perm_inv = vec![0usize; n];
-    let scratch =
-        factor::lu_in_place_scratch::<usize, Complex64>(n, n, par, Default::default()).or(
-            lu_solve::solve_in_place_scratch::<usize, Complex64>(n, b.ncols(), par),
-        );
-    let mut buffer = MemBuffer::new(scratch);
-    let stack = MemStack::new(&mut buffer);
-    let (_, perm) = factor::lu_in_place(
-        a.as_mut(),
-        &mut perm,
-        &mut perm_inv,
-        par,
-        stack,
-        Default::default(),
-    );
-    // L (unit lower) and U (upper) share the factorised matrix; each solve reads its triangle.
-    lu_solve::solve_in_place(a.as_ref(), a.as_ref(), perm, b.as_mut(), par, stack);
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lu_solve_solves_a_complex_system() {
-        // A small non-symmetric complex system with pivoting needed (zero leading entry).
-        let n = 7;
-        let entry = |i: usize, j: usize| {
-            if i == 0 && j == 0 {
-                Complex64::new(0.0, 0.0)
-            } else {
-                Complex64::new(
-                    ((3 * i + 5 * j) % 7) as f64 - 3.0,
-                    ((i * j) % 5) as f64 - 1.5,
-                ) + if i == j {
-                    Complex64::new(6.0, 0.0)
-                } else {
-                    Complex64::new(0.0, 0.0)
-                }
-            }
-        };
-        let a = Mat::<Complex64>::from_fn(n, n, entry);
-        let x = Mat::<Complex64>::from_fn(n, 2, |i, s| {
-            Complex64::new(i as f64 + s as f64, 1.0 - i as f64)
-        });
-        let mut b =
-            Mat::<Complex64>::from_fn(n, 2, |i, s| (0..n).map(|m| entry(i, m) * x[(m, s)]).sum());
-        lu_solve_in_place(a, b.as_mut());
-        for i in 0..n {
-            for s in 0..2 {
-                assert!((b[(i, s)] - x[(i, s)]).norm() < 1e-12, "{i} {s}");
-            }
-        }
     }
 }
