@@ -37,7 +37,6 @@ mod commands;
 mod examples;
 mod fit;
 mod image;
-mod media;
 mod memory;
 mod mie;
 mod npy;

@@ -2,13 +2,13 @@
 //! grid entries, and construction of the library's [`Scene`].
 
 use crate::InputError;
-use crate::media::SceneMedium;
 use crate::spec::{
     CoherenceSpec, FirstDirectionSpec, FirstVertexSpec, GridKind, MaterialSpec, MediumSpec,
     ParticleSpec, PhaseSpec, SceneFile, SensorSpec, SourceSpec,
 };
 use serde_json::{Value, json};
 use speckle::estimators::{Coherence, Pair, Scene, Sensor, Source};
+use speckle::medium::AnyMedium as SceneMedium;
 use speckle::medium::{
     Aabb, Concentration, DVec3, Dimension, HomogeneousBox, Material, Medium, ParticleMix,
     ParticleType, TypeMix, VoxelGrid,
