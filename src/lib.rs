@@ -12,7 +12,8 @@
 //! - [`stats`]: random streams, batch-means accumulation and the deterministic batch driver;
 //! - [`endpoints`]: sources and sensors, their connections to the medium and mean fields;
 //! - [`paths`]: volumetric sub-path sampling;
-//! - [`scene`]: the problem description (a validated scene);
+//! - [`scene`]: the problem description: the scene file format, its validation and builders,
+//!   a validated scene;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
 //!   scatterers, averaged over random configurations).

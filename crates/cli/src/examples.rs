@@ -27,7 +27,7 @@ pub const EXAMPLES: &[(&str, &str)] = &[
     ),
     (
         "mudiff_cbs_2d",
-        include_str!("../scenes/mudiff_cbs_2d.toml"),
+        include_str!("../../scene/scenes/mudiff_cbs_2d.toml"),
     ),
     ("beads", include_str!("../../../scenes/beads.toml")),
 ];

@@ -1,0 +1,475 @@
+//! The scene file format: the TOML document as written, before validation, and the
+//! command-line [`Overrides`] that replace some of its values.
+//!
+//! Every table denies unknown keys, so a typo is an error that names the key. Values are checked
+//! (finite, positive, inside or outside the medium, ...) by the builders of [`crate::build`],
+//! which name the offending field by its path in the document (`medium.mean_free_path`,
+//! `sources[2].direction`). The same structures serialise the scene, with defaults filled in,
+//! into the JSON sidecars.
+
+use serde::{Deserialize, Serialize};
+use speckle_paths::Coherence;
+use std::path::PathBuf;
+
+/// A whole scene file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Prefix of the output files; defaults to the scene file's stem.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// 3 (the world) or 2 (flatland: every position and direction in the plane `z = 0`).
+    #[serde(default = "three")]
+    pub dimension: i64,
+    /// Wavelength, in the scene's length unit.
+    pub wavelength: f64,
+    /// The medium.
+    pub medium: MediumSpec,
+    /// The scatterers' phase function (isotropic when absent; not with `medium.particles`,
+    /// whose amplitudes come from Mie theory, nor with a materials grid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase: Option<PhaseSpec>,
+    /// Illuminations, expanded in order (a generator entry adds several).
+    #[serde(default)]
+    pub sources: Vec<SourceSpec>,
+    /// Sensors, expanded in order (a grid entry adds several).
+    #[serde(default)]
+    pub sensors: Vec<SensorSpec>,
+    /// Explicit `(source, sensor)` index pairs; all combinations when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pairs: Option<Vec<[usize; 2]>>,
+    /// Estimator settings.
+    #[serde(default)]
+    pub render: RenderSpec,
+    /// Output settings.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn three() -> i64 {
+    3
+}
+
+/// A homogeneous box (a rectangle in flatland, where `size[2]` and `center[2]` are 0), given by
+/// `sigma_s` (+ `sigma_a`) or by `mean_free_path` (+ `albedo`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MediumSpec {
+    /// Edge lengths of the box.
+    pub size: [f64; 3],
+    /// Centre of the box.
+    #[serde(default)]
+    pub center: [f64; 3],
+    /// Scattering coefficient (per length unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_s: Option<f64>,
+    /// Absorption coefficient (per length unit), 0 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_a: Option<f64>,
+    /// Mean free path `1 / sigma_t`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_free_path: Option<f64>,
+    /// Single-scattering albedo `sigma_s / sigma_t` in `(0, 1]`, 1 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<f64>,
+    /// Refractive index of the host (default 1): the scene's `wavelength` is the vacuum
+    /// wavelength and light travels at `wavelength / host_index` in the host; Mie particles
+    /// are computed relative to it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host_index: Option<f64>,
+    /// Particle types (Mie spheres) instead of coefficients: `sigma_s`, `sigma_a` and one
+    /// amplitude function per type follow from Mie theory (Eqs. 42-44); `sigma_a`, if given,
+    /// is the host's absorption.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub particles: Option<Vec<ParticleSpec>>,
+    /// A voxel grid: the box is split into the voxels of a `.npy` array.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<GridSpec>,
+    /// Materials of a `kind = "materials"` grid, indexed by the grid's integer ids.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub materials: Option<Vec<MaterialSpec>>,
+}
+
+/// One particle type of `[[medium.particles]]`: a Mie sphere.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    /// Radius (the scene's length unit).
+    pub radius: f64,
+    /// Refractive index relative to the host, `[re, im]` (`im >= 0` absorbs).
+    pub index: [f64; 2],
+    /// Particles per unit volume.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number_density: Option<f64>,
+    /// Fraction of the volume the particles fill (Eq. 42).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub volume_fraction: Option<f64>,
+    /// Nodes of the amplitude table (default: enough for the sphere's size).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angles: Option<usize>,
+}
+
+/// `[medium.grid]`: a voxel grid over the box, from a `.npy` array of shape `(nx, ny, nz)`
+/// (`(nx, ny)` in flatland), x slowest (NumPy's C order).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// The `.npy` file, relative to the scene file's directory.
+    pub file: PathBuf,
+    /// `"density"`: the medium's coefficients (or particle numbers) times each voxel's value;
+    /// `"materials"`: each voxel's integer value indexes `[[medium.materials]]`.
+    pub kind: GridKind,
+}
+
+/// `medium.grid.kind`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GridKind {
+    /// Densities scaling the medium's coefficients.
+    Density,
+    /// Material ids.
+    Materials,
+}
+
+/// One entry of `[[medium.materials]]`: coefficients as in `[medium]` and a phase function.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Scattering coefficient (0 for an absorbing or empty material).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_s: Option<f64>,
+    /// Absorption coefficient, 0 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_a: Option<f64>,
+    /// Mean free path `1 / sigma_t`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_free_path: Option<f64>,
+    /// Albedo, 1 when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<f64>,
+    /// The material's phase function (isotropic when absent).
+    #[serde(default)]
+    pub phase: PhaseSpec,
+}
+
+/// The phase function.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PhaseSpec {
+    /// Isotropic scattering.
+    Isotropic {},
+    /// Henyey-Greenstein with anisotropy `g`, `|g| < 1`.
+    Hg {
+        /// Mean cosine.
+        g: f64,
+    },
+    /// A tabulated complex amplitude from a CSV file (header `theta_rad,re,im`,
+    /// `theta_deg,re,im` or, in 3D only, `mu,re,im`), relative to the scene file's directory;
+    /// over `[0, pi]` in 3D and over the signed angle in `[0, 2 pi]` in flatland.
+    Tabulated {
+        /// The CSV file, or `embedded:NAME` for a table embedded in the binary.
+        file: PathBuf,
+    },
+    /// A mixture of Henyey-Greenstein lobes (3D): `rho = sum w_l HG(g_l)`.
+    HgMixture {
+        /// Lobe weights (normalised to sum to one).
+        weights: Vec<f64>,
+        /// Lobe anisotropies, `|g| < 1`.
+        g: Vec<f64>,
+    },
+    /// A vMF-mixture amplitude `s = sum pi_m exp(gamma_m mu)` (3D), as written by
+    /// `speckle fit-phase` (its `.vmf.toml`).
+    Vmf {
+        /// Signed concentrations `gamma_m` (negative: a backward lobe).
+        gamma: Vec<f64>,
+        /// Positive weights `alpha_m` (of the normalised lobes).
+        alpha: Vec<f64>,
+    },
+}
+
+impl Default for PhaseSpec {
+    fn default() -> Self {
+        Self::Isotropic {}
+    }
+}
+
+fn z_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// One entry of `[[sources]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SourceSpec {
+    /// A unit plane wave propagating along `direction`.
+    Plane {
+        /// Propagation direction (normalised).
+        direction: [f64; 3],
+    },
+    /// A point source `e^{ikr}/r` at `position` (outside the medium).
+    Point {
+        /// Position.
+        position: [f64; 3],
+    },
+    /// Plane waves: `direction` rotated about `axis` by each angle of `tilts_deg`.
+    PlaneTilts {
+        /// The untilted propagation direction (default `+z`; `+y` in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        direction: Option<[f64; 3]>,
+        /// Rotation axis, right-hand rule (default `+y`: positive tilts lean `+z` towards `+x`;
+        /// in flatland `+z` (the default) or `-z`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// Tilt angles in degrees.
+        tilts_deg: Vec<f64>,
+    },
+}
+
+/// One entry of `[[sensors]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SensorSpec {
+    /// The far-field amplitude in `direction`.
+    Far {
+        /// Viewing direction, from the medium to the sensor (normalised).
+        direction: [f64; 3],
+    },
+    /// The field at `position` (outside the medium).
+    Point {
+        /// Position.
+        position: [f64; 3],
+    },
+    /// An `ny x nx` image of far-field directions `unit(tan(tx) e1 + tan(ty) e2 + c)` around
+    /// `center = c`, with `e1 = unit(y x c)` (or `unit(x x c)` when `c` is along `y`),
+    /// `e2 = c x e1`; `tx`, `ty` uniform over the inclusive ranges. Row-major, `ty` slow.
+    FarGrid {
+        /// The central direction (default `+z`).
+        #[serde(default = "z_axis")]
+        center: [f64; 3],
+        /// `[first, last]` angle along `e1`, degrees, in `(-90, 90)`.
+        theta_x_deg: [f64; 2],
+        /// `[first, last]` angle along `e2`, degrees, in `(-90, 90)`.
+        theta_y_deg: [f64; 2],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+    },
+    /// `n` far-field directions: `center` rotated about `axis` (right-hand rule) by angles
+    /// uniform over the inclusive range `angles_deg` (the first angle when `n = 1`).
+    FarArc {
+        /// The direction at angle 0 (default `+z`; `+y` in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        center: Option<[f64; 3]>,
+        /// Rotation axis, not parallel to `center` (default `+y`; `+z` in flatland, where it
+        /// must be `+z` or `-z`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// `[first, last]` rotation angle, degrees.
+        angles_deg: [f64; 2],
+        /// Number of directions (at least 1).
+        n: usize,
+    },
+    /// An `ny x nx` grid of points `origin + ix step_x + iy step_y`. Row-major, `iy` slow.
+    PointGrid {
+        /// The first point.
+        origin: [f64; 3],
+        /// Step between columns.
+        step_x: [f64; 3],
+        /// Step between rows.
+        step_y: [f64; 3],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+    },
+}
+
+/// `[render]`: estimator settings.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderSpec {
+    /// Sub-paths of a covariance or single-scattering render (at least 2).
+    pub paths: u64,
+    /// Seed of the counter-based random streams.
+    pub seed: u64,
+    /// Which path pairs the covariance includes.
+    pub coherence: CoherenceSpec,
+    /// Strategy for the first vertex of each sub-path.
+    pub first_vertex: FirstVertexSpec,
+    /// Illumination direction for `exponential_depth` (default: the first plane-wave source).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_vertex_direction: Option<[f64; 3]>,
+    /// Strategy for the first direction of each sub-path.
+    pub first_direction: FirstDirectionSpec,
+    /// Axis for `first_direction = "phase"` (default: the first plane-wave source).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_direction_axis: Option<[f64; 3]>,
+    /// Truncate paths after this many vertices (biased; unlimited when absent).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_vertices: Option<u32>,
+    /// Field realizations `R` of `speckle fields`.
+    pub realizations: usize,
+    /// Sub-paths summed into each field realization.
+    pub paths_per_realization: u64,
+    /// Add the speckle mean to every field realization.
+    pub add_mean: bool,
+    /// Scatterer configurations `R` of `speckle wave` (at least 2).
+    pub configurations: usize,
+}
+
+impl Default for RenderSpec {
+    fn default() -> Self {
+        Self {
+            paths: 100_000,
+            seed: 1,
+            coherence: CoherenceSpec::ForwardAndReversed,
+            first_vertex: FirstVertexSpec::Uniform,
+            first_vertex_direction: None,
+            first_direction: FirstDirectionSpec::Uniform,
+            first_direction_axis: None,
+            max_vertices: None,
+            realizations: 8,
+            paths_per_realization: 20_000,
+            add_mean: true,
+            configurations: 200,
+        }
+    }
+}
+
+/// `render.coherence`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoherenceSpec {
+    /// Forward and reversed paths (coherent backscattering included).
+    ForwardAndReversed,
+    /// Forward paths only.
+    ForwardOnly,
+}
+
+/// `render.first_vertex`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstVertexSpec {
+    /// Uniform in the medium (density `sigma_s / V`).
+    Uniform,
+    /// Exponential in depth along the illumination axis.
+    ExponentialDepth,
+}
+
+/// `render.first_direction`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstDirectionSpec {
+    /// Uniform on the sphere.
+    Uniform,
+    /// From the phase function around the illumination axis.
+    Phase,
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output directory, relative to the current directory (not to the scene file).
+    pub dir: PathBuf,
+    /// Write PNG previews.
+    pub png: bool,
+    /// Field PNGs are written for the first this many realizations.
+    pub png_realizations: usize,
+    /// Integer upscaling of PNGs (nearest neighbour); automatic (to about 256 pixels) when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub png_scale: Option<u32>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self {
+            dir: PathBuf::from("out"),
+            png: true,
+            png_realizations: 4,
+            png_scale: None,
+        }
+    }
+}
+
+impl PhaseSpec {
+    /// A one-line description for summaries (`Henyey-Greenstein g = 0.5`).
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Isotropic {} => "isotropic".to_string(),
+            Self::Hg { g } => format!("Henyey-Greenstein g = {g}"),
+            Self::Tabulated { file } => format!("tabulated {}", file.display()),
+            Self::HgMixture { weights, g } => {
+                format!("HG mixture, weights {weights:?}, g {g:?}")
+            }
+            Self::Vmf { gamma, .. } => format!("vMF mixture of {} lobes", gamma.len()),
+        }
+    }
+}
+
+impl CoherenceSpec {
+    /// The library's setting.
+    pub fn coherence(self) -> Coherence {
+        match self {
+            Self::ForwardAndReversed => Coherence::ForwardAndReversed,
+            Self::ForwardOnly => Coherence::ForwardOnly,
+        }
+    }
+}
+
+/// Values that replace those of a scene file before validation: the command line's
+/// `--paths`, `--seed`, `--forward-only`, ... A plain struct, so that any front end (the
+/// `speckle` binary, a binding) passes the same; every field left at its default keeps the
+/// file's value.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// `render.paths`.
+    pub paths: Option<u64>,
+    /// `render.seed`.
+    pub seed: Option<u64>,
+    /// `render.coherence = "forward_only"`.
+    pub forward_only: bool,
+    /// `render.realizations`.
+    pub realizations: Option<usize>,
+    /// `render.paths_per_realization`.
+    pub paths_per_realization: Option<u64>,
+    /// `render.add_mean = false`.
+    pub no_mean: bool,
+    /// `render.configurations`.
+    pub configurations: Option<usize>,
+    /// `output.dir`.
+    pub out: Option<PathBuf>,
+    /// `output.png = false`.
+    pub no_png: bool,
+    /// `output.png_realizations`.
+    pub png_realizations: Option<usize>,
+}
+
+impl Overrides {
+    /// Writes the overrides into `file`.
+    pub fn apply(&self, file: &mut SceneFile) {
+        let r = &mut file.render;
+        r.paths = self.paths.unwrap_or(r.paths);
+        r.seed = self.seed.unwrap_or(r.seed);
+        if self.forward_only {
+            r.coherence = CoherenceSpec::ForwardOnly;
+        }
+        r.realizations = self.realizations.unwrap_or(r.realizations);
+        r.paths_per_realization = self
+            .paths_per_realization
+            .unwrap_or(r.paths_per_realization);
+        if self.no_mean {
+            r.add_mean = false;
+        }
+        r.configurations = self.configurations.unwrap_or(r.configurations);
+        let out = &mut file.output;
+        if let Some(dir) = &self.out {
+            out.dir = dir.clone();
+        }
+        if self.no_png {
+            out.png = false;
+        }
+        out.png_realizations = self.png_realizations.unwrap_or(out.png_realizations);
+    }
+}
