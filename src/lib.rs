@@ -16,7 +16,9 @@
 //!   a validated scene;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
-//!   scatterers, averaged over random configurations).
+//!   scatterers, averaged over random configurations);
+//! - [`studies`]: studies built on the renderers (the memory effect versus wavelength of
+//!   Fig. 11), with their figures.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -28,5 +30,6 @@ pub use speckle_paths as paths;
 pub use speckle_phase as phase;
 pub use speckle_scene as scene;
 pub use speckle_stats as stats;
+pub use speckle_studies as studies;
 pub use speckle_vmf as vmf;
 pub use speckle_wave as wave;

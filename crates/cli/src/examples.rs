@@ -38,11 +38,11 @@ pub const EXAMPLES: &[(&str, &str)] = &[
 pub const STUDIES: &[(&str, &str)] = &[
     (
         "fig11a_memory_small",
-        include_str!("../scenes/fig11a_memory_small.toml"),
+        include_str!("../../studies/scenes/fig11a_memory_small.toml"),
     ),
     (
         "fig11b_memory_large",
-        include_str!("../scenes/fig11b_memory_large.toml"),
+        include_str!("../../studies/scenes/fig11b_memory_large.toml"),
     ),
 ];
 

@@ -1396,8 +1396,8 @@ fn svg(s: &Study, rows: &[Row]) -> String {
 mod tests {
     use super::*;
 
-    const SMALL: &str = include_str!("../scenes/fig11a_memory_small.toml");
-    const LARGE: &str = include_str!("../scenes/fig11b_memory_large.toml");
+    const SMALL: &str = include_str!("../../studies/scenes/fig11a_memory_small.toml");
+    const LARGE: &str = include_str!("../../studies/scenes/fig11b_memory_large.toml");
 
     const BASE: &str = r#"
 radius_um = 0.01
