@@ -164,7 +164,7 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
 }
 
 /// Reads a scene document. Unknown keys are named; a type error inside a tagged table is
-/// named by [`tagged_culprit`].
+/// named by looking for it in the document.
 pub fn parse_scene(text: &str) -> Result<SceneFile, LoadError> {
     parse_toml(
         text,
