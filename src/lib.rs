@@ -12,10 +12,13 @@
 //! - [`stats`]: random streams, batch-means accumulation and the deterministic batch driver;
 //! - [`endpoints`]: sources and sensors, their connections to the medium and mean fields;
 //! - [`paths`]: volumetric sub-path sampling;
-//! - [`scene`]: the problem description (a validated scene);
+//! - [`scene`]: the problem description: the scene file format, its validation and builders,
+//!   a validated scene;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
-//!   scatterers, averaged over random configurations).
+//!   scatterers, averaged over random configurations);
+//! - [`studies`]: studies built on the renderers (the memory effect versus wavelength of
+//!   Fig. 11), with their figures.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -27,5 +30,6 @@ pub use speckle_paths as paths;
 pub use speckle_phase as phase;
 pub use speckle_scene as scene;
 pub use speckle_stats as stats;
+pub use speckle_studies as studies;
 pub use speckle_vmf as vmf;
 pub use speckle_wave as wave;

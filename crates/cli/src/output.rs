@@ -2,7 +2,7 @@
 //! whole render has succeeded, each through a temporary file in the output directory that is then
 //! renamed into place. A cancelled or failed render leaves no file behind, not even a partial one.
 
-use crate::Cancelled;
+use crate::error::Cancelled;
 use anyhow::Context;
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -908,13 +908,16 @@ fn every_example_prints_and_checks() {
     for name in &names {
         let o = speckle(dir.path(), &["example", name]);
         assert!(o.status.success());
-        // The embedded text is the file in scenes/ (or in crates/cli/scenes/).
+        // The embedded text is the file in scenes/ (or in crates/scene/scenes/).
         let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let file = [crate_dir.join("../../scenes"), crate_dir.join("scenes")]
-            .iter()
-            .map(|d| d.join(format!("{name}.toml")))
-            .find(|f| f.exists())
-            .unwrap_or_else(|| panic!("no scene file for the example {name}"));
+        let file = [
+            crate_dir.join("../../scenes"),
+            crate_dir.join("../scene/scenes"),
+        ]
+        .iter()
+        .map(|d| d.join(format!("{name}.toml")))
+        .find(|f| f.exists())
+        .unwrap_or_else(|| panic!("no scene file for the example {name}"));
         assert_eq!(stdout(&o), std::fs::read_to_string(&file).unwrap());
         let p = write(dir.path(), &format!("{name}.toml"), &stdout(&o));
         let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);

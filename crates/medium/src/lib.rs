@@ -22,6 +22,8 @@
 //!   traversal), flights use delta tracking with the global majorant (or, as an option, exact
 //!   regular tracking along the DDA, see [`Tracking`]).
 //!
+//! [`AnyMedium`] is the closed enum of both, the one concrete medium type of a scene description.
+//!
 //! Both handle several particle types (Bar et al. 2019, App. A.1, Eqs. 42-45): at a scattering
 //! point `x` the particle hit is of type `iota` with probability `beta_iota(x)` (Eq. 44), given by
 //! a [`TypeMix`]. [`ParticleMix`] turns particle populations (radius, cross sections, number
@@ -35,11 +37,13 @@
 #![deny(missing_docs)]
 
 mod aabb;
+mod any;
 mod grid;
 mod homogeneous;
 mod particles;
 
 pub use aabb::Aabb;
+pub use any::AnyMedium;
 pub use glam::DVec3;
 pub use grid::{MAX_VOXELS, Material, Tracking, VoxelGrid};
 pub use homogeneous::HomogeneousBox;

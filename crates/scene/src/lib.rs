@@ -1,9 +1,22 @@
 //! The problem description of speckle renders: a validated [`Scene`] (medium, phase functions,
-//! wavelength, sources, sensors and the (source, sensor) pairs whose statistics are wanted).
+//! wavelength, sources, sensors and the (source, sensor) pairs whose statistics are wanted), and
+//! everything that turns a scene *file* into one.
 //!
-//! Design decision: a scene is the physics only. How it is rendered (Monte Carlo path counts,
+//! - [`schema`]: the TOML scene format as written (serde), and the command-line [`Overrides`];
+//! - [`load`]: reading and parsing, errors with key paths and line/column ([`LoadError`]);
+//! - [`build`]: the builders of media, phase functions, sources and sensors, render and output
+//!   settings; each validates its values and names the offending field ([`SceneError`]);
+//! - [`problem`]: [`Problem`], a loaded scene with its settings and the descriptions the JSON
+//!   sidecars embed;
+//! - [`npy`]: the `.npy` format (writer and reader); [`examples`]: the embedded example scenes
+//!   and data; [`tools`]: the Mie report and the vMF fit of `speckle mie` and `fit-phase`.
+//!
+//! Design decisions: a scene is the physics only. How it is rendered (Monte Carlo path counts,
 //! seeds, sampling strategies, wave-solver configurations) belongs to the options of each
-//! renderer, so the Monte Carlo estimators and the exact wave solver take the same scene.
+//! renderer, so the Monte Carlo estimators and the exact wave solver take the same scene; a
+//! scene file carries those settings too, validated here as [`RenderSettings`]. Validation
+//! happens once, here: a front end (the `speckle` binary, a binding) parses its arguments into
+//! [`Overrides`] and writes files, and checks nothing itself.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -14,6 +27,24 @@ use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
+
+pub mod build;
+pub mod examples;
+pub mod load;
+pub mod npy;
+pub mod problem;
+pub mod schema;
+pub mod tools;
+pub mod validate;
+
+pub use build::render::{OutputSettings, RenderSettings};
+pub use load::{LoadError, load_file, load_str};
+pub use problem::Problem;
+pub use schema::{Overrides, SceneFile};
+
+/// The scene a scene file describes: any medium of [`speckle_medium::AnyMedium`], phase
+/// functions of [`speckle_phase::Phase`].
+pub type AnyScene = Scene<speckle_medium::AnyMedium, speckle_phase::Phase>;
 
 /// Errors of scene construction; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

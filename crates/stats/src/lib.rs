@@ -16,6 +16,7 @@
 mod block;
 mod driver;
 mod empirical;
+pub mod jackknife;
 mod matrix;
 mod moments;
 pub mod rng;

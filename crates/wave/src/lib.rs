@@ -92,11 +92,13 @@
 #![deny(missing_docs)]
 
 pub mod bessel;
+mod cost;
 mod kernel;
 pub mod lu;
 mod render;
 mod solve;
 
+pub use cost::{WaveCost, estimate_cost};
 pub use kernel::Kernel;
 pub use render::{WaveEstimate, WaveOptions, render_wave};
 pub use solve::{

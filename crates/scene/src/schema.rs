@@ -1,11 +1,14 @@
-//! The scene file format: the TOML document as written, before validation.
+//! The scene file format: the TOML document as written, before validation, and the
+//! command-line [`Overrides`] that replace some of its values.
 //!
 //! Every table denies unknown keys, so a typo is an error that names the key. Values are checked
-//! (finite, positive, inside or outside the medium, ...) by [`crate::scene`], which names the
-//! offending field by its path in the document (`medium.mean_free_path`, `sources[2].direction`).
-//! The same structures serialise the scene, with defaults filled in, into the JSON sidecars.
+//! (finite, positive, inside or outside the medium, ...) by the builders of [`crate::build`],
+//! which name the offending field by its path in the document (`medium.mean_free_path`,
+//! `sources[2].direction`). The same structures serialise the scene, with defaults filled in,
+//! into the JSON sidecars.
 
 use serde::{Deserialize, Serialize};
+use speckle_paths::Coherence;
 use std::path::PathBuf;
 
 /// A whole scene file.
@@ -387,5 +390,86 @@ impl Default for OutputSpec {
             png_realizations: 4,
             png_scale: None,
         }
+    }
+}
+
+impl PhaseSpec {
+    /// A one-line description for summaries (`Henyey-Greenstein g = 0.5`).
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Isotropic {} => "isotropic".to_string(),
+            Self::Hg { g } => format!("Henyey-Greenstein g = {g}"),
+            Self::Tabulated { file } => format!("tabulated {}", file.display()),
+            Self::HgMixture { weights, g } => {
+                format!("HG mixture, weights {weights:?}, g {g:?}")
+            }
+            Self::Vmf { gamma, .. } => format!("vMF mixture of {} lobes", gamma.len()),
+        }
+    }
+}
+
+impl CoherenceSpec {
+    /// The library's setting.
+    pub fn coherence(self) -> Coherence {
+        match self {
+            Self::ForwardAndReversed => Coherence::ForwardAndReversed,
+            Self::ForwardOnly => Coherence::ForwardOnly,
+        }
+    }
+}
+
+/// Values that replace those of a scene file before validation: the command line's
+/// `--paths`, `--seed`, `--forward-only`, ... A plain struct, so that any front end (the
+/// `speckle` binary, a binding) passes the same; every field left at its default keeps the
+/// file's value.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// `render.paths`.
+    pub paths: Option<u64>,
+    /// `render.seed`.
+    pub seed: Option<u64>,
+    /// `render.coherence = "forward_only"`.
+    pub forward_only: bool,
+    /// `render.realizations`.
+    pub realizations: Option<usize>,
+    /// `render.paths_per_realization`.
+    pub paths_per_realization: Option<u64>,
+    /// `render.add_mean = false`.
+    pub no_mean: bool,
+    /// `render.configurations`.
+    pub configurations: Option<usize>,
+    /// `output.dir`.
+    pub out: Option<PathBuf>,
+    /// `output.png = false`.
+    pub no_png: bool,
+    /// `output.png_realizations`.
+    pub png_realizations: Option<usize>,
+}
+
+impl Overrides {
+    /// Writes the overrides into `file`.
+    pub fn apply(&self, file: &mut SceneFile) {
+        let r = &mut file.render;
+        r.paths = self.paths.unwrap_or(r.paths);
+        r.seed = self.seed.unwrap_or(r.seed);
+        if self.forward_only {
+            r.coherence = CoherenceSpec::ForwardOnly;
+        }
+        r.realizations = self.realizations.unwrap_or(r.realizations);
+        r.paths_per_realization = self
+            .paths_per_realization
+            .unwrap_or(r.paths_per_realization);
+        if self.no_mean {
+            r.add_mean = false;
+        }
+        r.configurations = self.configurations.unwrap_or(r.configurations);
+        let out = &mut file.output;
+        if let Some(dir) = &self.out {
+            out.dir = dir.clone();
+        }
+        if self.no_png {
+            out.png = false;
+        }
+        out.png_realizations = self.png_realizations.unwrap_or(out.png_realizations);
     }
 }

@@ -1,13 +1,13 @@
-//! NumPy `.npy` writer for complex128 and float64 arrays, and a reader for real arrays (voxel
-//! grids).
+//! The NumPy `.npy` format, in one place: the writer of the arrays every command outputs
+//! (complex128 and float64, C order) and the reader of real arrays (voxel grids).
 //!
 //! The header is written by hand rather than through a crate: the format (NEP 1, version 1.0) is
 //! a magic string, a two-byte header length and a Python dict literal, and we only ever write two
 //! dtypes (`'<c16'` and `'<f8'`, little-endian complex128 and float64) in C order. Doing it here
-//! costs forty lines and keeps the binary's dependency tree (and the `num-complex` version it
-//! would have to agree on) small. The result loads with `numpy.load` and with any NEP-1 reader.
+//! costs forty lines and keeps the dependency tree (and the `num-complex` version it would have
+//! to agree on) small. The result loads with `numpy.load` and with any NEP-1 reader.
 
-use speckle::phase::Complex64;
+use num_complex::Complex64;
 
 /// Magic string and version 1.0.
 const MAGIC: &[u8] = b"\x93NUMPY\x01\x00";

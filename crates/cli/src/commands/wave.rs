@@ -1,0 +1,171 @@
+//! `speckle wave`: the exact Foldy-Lax solution of `R` random configurations of the scene's
+//! scatterers (`speckle::wave`), with their empirical mean and covariance in the pair order and
+//! layout of `speckle covariance`.
+
+use super::fields::{FieldImages, layout};
+use super::*;
+use crate::error;
+use speckle::scene::npy::encode_c16;
+use speckle::wave::{Kernel, WaveOptions, estimate_cost, number_density, render_wave};
+
+/// Arguments of `wave`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    common: Common,
+    /// Number of scatterer configurations (replaces `render.configurations`).
+    #[arg(long, value_name = "R")]
+    configurations: Option<usize>,
+    /// Write no PNG.
+    #[arg(long)]
+    no_png: bool,
+}
+
+/// `n` bytes in a unit a reader takes in at a glance.
+fn human_bytes(n: f64) -> String {
+    let mut v = n;
+    for unit in ["B", "KiB", "MiB", "GiB"] {
+        if v < 1024.0 {
+            return format!("{v:.0} {unit}");
+        }
+        v /= 1024.0;
+    }
+    format!("{v:.1} TiB")
+}
+
+/// `t` seconds in a unit a reader takes in at a glance.
+fn human_seconds(t: f64) -> String {
+    match t {
+        t if t < 1.0 => "under a second".to_string(),
+        t if t < 120.0 => format!("{t:.0} s"),
+        t if t < 7200.0 => format!("{:.0} min", t / 60.0),
+        t => format!("{:.1} h", t / 3600.0),
+    }
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let (p, run) = a.common.load(Overrides {
+        configurations: a.configurations,
+        no_png: a.no_png,
+        ..Overrides::default()
+    })?;
+    let wave_error = |e| error::wave(e, &p.origin);
+    // The solver's own checks first (isotropic phase, sigma_a = 0, the size of the medium).
+    let scene = p.box_scene()?;
+    let rr = p.render.configurations;
+    let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
+    let density = number_density(&scene).map_err(wave_error)?;
+    let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
+    p.field_rows_size(rr, "render.configurations")
+        .map_err(in_scene(&p))?;
+    if !run.quiet {
+        say!(
+            "{}: wave solver: {rr} configurations of about {:.1} scatterers (N = sigma_s |V| / \
+             c_s, Poisson), a dense N x N complex solve each (O(N^3)); about {} of matrices at a \
+             time ({} at once) and {} of results; roughly {} in all",
+            p.name,
+            cost.scatterers,
+            human_bytes(cost.matrix_bytes),
+            cost.in_flight,
+            human_bytes(cost.result_bytes),
+            human_seconds(cost.seconds)
+        );
+    }
+    let opts = WaveOptions {
+        configurations: rr,
+        seed: p.render.seed,
+    };
+    let (est, wall) = run.timed(&p, rr as u64, "configurations", wave_error, |pr| {
+        render_wave(&scene, &opts, pr)
+    })?;
+    let n = &p.name;
+    let cov = &est.covariance;
+    let (fields_shape, fields_layout) = layout(&p, rr, "configuration");
+    let mut staged = Staged::new(p.out_dir());
+    let mut files = json!({
+        "layout": format!(
+            "wave_cov, wave_cov_stderr: complex128 (J, J), row j1 column j2 = pairs[j1], \
+             pairs[j2], as <name>.cov.npy; stderr: re = standard error of Re C, im = of Im C \
+             (over configurations); wave_mean, wave_mean_stderr: complex128 (J,), the sample \
+             mean of each pair's field and its standard error (re, im); wave_fields: \
+             {fields_layout}"
+        ),
+        "fields_shape": fields_shape,
+    });
+    let arrays = [
+        ("wave_cov", encode_c16(&[j, j], cov.value.as_slice())),
+        (
+            "wave_cov_stderr",
+            encode_c16(&[j, j], cov.std_error.as_slice()),
+        ),
+        ("wave_mean", encode_c16(&[j], &est.mean)),
+        ("wave_mean_stderr", encode_c16(&[j], &est.mean_std_error)),
+        (
+            "wave_fields",
+            encode_c16(&fields_shape, est.fields.as_slice()),
+        ),
+    ];
+    stage_arrays(&mut staged, &mut files, n, arrays);
+    stage_magnitude_png(
+        &p,
+        &mut staged,
+        &mut files,
+        &cov.value,
+        &format!("{n}.wave_cov"),
+    )?;
+    let naming = "<name>.wave.r{configuration}.s{source}.png";
+    let stem = format!("{n}.wave");
+    let images = FieldImages::new(&p, est.fields.as_slice(), &stem, naming, &mut staged)?;
+    if let Some(png) = images.png.clone() {
+        files["field_png"] = png;
+    }
+    let diag = mean_diagonal(&cov.value);
+    let counts = &est.scatterer_counts;
+    let mut summary = images.summary(&p);
+    for (key, v) in [
+        ("mean_diagonal", json!(diag)),
+        (
+            "max_relative_stderr_diagonal",
+            json!(max_relative_diagonal_error(cov)),
+        ),
+        (
+            "mean_coherent_intensity",
+            json!(coherent_intensity(&est.mean)),
+        ),
+        ("mean_scatterers", json!(est.mean_scatterers)),
+        ("expected_scatterers", json!(est.expected_scatterers)),
+        ("min_scatterers", json!(counts.iter().min())),
+        ("max_scatterers", json!(counts.iter().max())),
+    ] {
+        summary[key] = v;
+    }
+    let kernel = Kernel::new(p.dimension(), p.scene.wavenumber());
+    let tau = kernel.t_matrix();
+    let render = json!({
+        "solver": "speckle-wave: Foldy-Lax multiple scattering, solved exactly (dense LU) for \
+                   each configuration of resonant, lossless, isotropic point scatterers placed \
+                   uniformly in the box, their number Poisson with mean n |V|",
+        "configurations": rr,
+        "seed": opts.seed,
+        "streams": "configuration r draws from the counter-based stream (seed, r)",
+        "expected_scatterers": est.expected_scatterers,
+        "mean_scatterers": est.mean_scatterers,
+        "number_density": density,
+        "cross_section": kernel.cross_section(),
+        "t_matrix": [tau.re, tau.im],
+        "threads": threads(),
+        "wall_time_s": wall,
+    });
+    let meta = p.sidecar("wave", render, files, summary);
+    stage_json(&mut staged, format!("{n}.wave.json"), &meta)?;
+    say!(
+        "{n}: exact wave covariance of J = {j} pairs from {rr} configurations ({:.1} scatterers \
+         on average, {:.1} expected) in {wall:.2} s ({} threads); mean diagonal {diag:.4e} (max \
+         relative stderr {:.2}%)",
+        est.mean_scatterers,
+        cost.scatterers,
+        threads(),
+        100.0 * max_relative_diagonal_error(cov)
+    );
+    finish(staged)
+}

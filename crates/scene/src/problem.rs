@@ -1,0 +1,566 @@
+//! [`Problem`]: a loaded scene file, everything a renderer and its report need: the validated
+//! [`Scene`], the render and output settings, the descriptions of the expanded sources and
+//! sensors, the layout of a sensor image, and the JSON the sidecars embed.
+
+use crate::SceneError;
+use crate::build::endpoints::{EndpointInfo, SensorGrid, build_sensors, build_sources};
+use crate::build::medium::{MediumFacts, build_medium};
+use crate::build::render::{OutputSettings, RenderSettings, coherence_name};
+use crate::build::{MAX_ENDPOINTS, medium::BuiltMedium};
+use crate::load::LoadError;
+use crate::schema::{PhaseSpec, SceneFile};
+use crate::validate::{self, invalid, positive};
+use crate::{AnyScene, Scene};
+use num_complex::Complex64;
+use serde_json::{Value, json};
+use speckle_endpoints::Pair;
+use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Medium};
+use speckle_paths::Tracer;
+use speckle_phase::{Phase, PhaseFunction};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Bytes of covariance accumulators above which a `J x J` render is refused.
+pub const MAX_COVARIANCE_BYTES: f64 = 8.0 * (1u64 << 30) as f64;
+
+/// A validated scene file and everything the renderers and their reports need.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    /// The document as parsed, with the overrides, the name and the generators' defaults filled
+    /// in (the sidecars record it).
+    pub file: SceneFile,
+    /// Output prefix.
+    pub name: String,
+    /// Where the scene came from (a path, or `<embedded NAME>`).
+    pub origin: String,
+    /// The library scene.
+    pub scene: AnyScene,
+    /// One description per expanded source.
+    pub sources: Vec<EndpointInfo>,
+    /// One description per expanded sensor.
+    pub sensors: Vec<EndpointInfo>,
+    /// Set when the sensors form one image.
+    pub grid: Option<SensorGrid>,
+    /// Whether the pairs are all (source, sensor) combinations, source-major.
+    pub all_pairs: bool,
+    /// Render settings.
+    pub render: RenderSettings,
+    /// Output settings.
+    pub output: OutputSettings,
+    /// Mie facts of a particle medium.
+    pub medium_facts: Option<MediumFacts>,
+}
+
+impl Problem {
+    /// Validates a parsed document (overrides already applied): `origin` names it, relative
+    /// input files are looked up in `base`, `default_name` is the output prefix when the
+    /// document sets none. Fields are checked in document order; the first bad one is named.
+    pub fn build(
+        mut file: SceneFile,
+        origin: &str,
+        base: &Path,
+        default_name: &str,
+    ) -> Result<Self, SceneError> {
+        let name = file
+            .name
+            .clone()
+            .unwrap_or_else(|| default_name.to_string());
+        validate::name(&name)?;
+        file.name = Some(name.clone());
+        let dim = match file.dimension {
+            3 => Dimension::Three,
+            2 => Dimension::Two,
+            d => {
+                return Err(invalid(
+                    "dimension",
+                    format!("must be 3 (the default) or 2 (flatland) (got {d})"),
+                ));
+            }
+        };
+        let wavelength = positive("wavelength", file.wavelength)?;
+        let BuiltMedium {
+            medium,
+            phases,
+            facts,
+        } = build_medium(&file.medium, file.phase.as_ref(), base, wavelength, dim)?;
+        // Light travels at the wavelength in the host.
+        let wavelength = wavelength / file.medium.host_index.unwrap_or(1.0);
+        let bounds = *medium.bounds();
+        let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
+        let (sensors, sensor_desc, grid) = build_sensors(&mut file.sensors, &bounds)?;
+        let (pairs, all_pairs) = pairs(file.pairs.as_deref(), sources.len(), sensors.len())?;
+        let render = RenderSettings::build(&file.render, &sources, dim)?;
+        let output = OutputSettings::build(&file.output)?;
+        let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?;
+        // Check the sampling configuration against the medium now rather than at render time.
+        Tracer::with_types(scene.medium(), scene.phases(), render.sampling)
+            .map_err(|p| invalid("render", p))?;
+        Ok(Self {
+            file,
+            name,
+            origin: origin.to_string(),
+            scene,
+            sources: source_desc,
+            sensors: sensor_desc,
+            grid,
+            all_pairs,
+            render,
+            output,
+            medium_facts: facts,
+        })
+    }
+
+    /// An error about this problem, said to be in its document (`origin: field: reason`).
+    pub fn in_document(&self, e: impl Into<LoadError>) -> LoadError {
+        e.into().in_document(&self.origin)
+    }
+
+    /// Number of pairs `J`.
+    pub fn pairs(&self) -> usize {
+        self.scene.len()
+    }
+
+    /// Number of expanded sources.
+    pub fn n_sources(&self) -> usize {
+        self.scene.sources().len()
+    }
+
+    /// Number of expanded sensors.
+    pub fn n_sensors(&self) -> usize {
+        self.scene.sensors().len()
+    }
+
+    /// The output directory.
+    pub fn out_dir(&self) -> &Path {
+        &self.output.dir
+    }
+
+    /// 3D or flatland.
+    pub fn dimension(&self) -> Dimension {
+        self.scene.medium().bounds().dimension()
+    }
+
+    /// The shape of one value per pair: `(n_sources, n_sensors)` with all pairs, else `(J,)`.
+    pub fn pair_shape(&self) -> Vec<usize> {
+        if self.all_pairs {
+            vec![self.n_sources(), self.n_sensors()]
+        } else {
+            vec![self.pairs()]
+        }
+    }
+
+    /// The sensor image when per-source PNG images are wanted and possible (PNGs on, all pairs,
+    /// the sensors one grid).
+    pub fn png_grid(&self) -> Option<SensorGrid> {
+        self.grid.filter(|_| self.output.png && self.all_pairs)
+    }
+
+    /// Refuses a `J x J` covariance whose accumulators on `threads` threads would not fit in
+    /// memory; returns `J`. The error names `sensors`.
+    pub fn covariance_size(&self, threads: usize) -> Result<usize, SceneError> {
+        let j = self.pairs();
+        // Accumulators of three estimates and the batches in flight, 16 bytes per entry.
+        let bytes = (j as f64).powi(2) * 16.0 * (12.0 + 4.0 * threads as f64);
+        if bytes > MAX_COVARIANCE_BYTES {
+            return Err(invalid(
+                "sensors",
+                format!(
+                    "a covariance of J = {j} pairs needs about {:.1} GiB; use fewer sensors or \
+                     pairs, or `speckle fields`",
+                    bytes / (1u64 << 30) as f64
+                ),
+            ));
+        }
+        Ok(j)
+    }
+
+    /// Refuses `rows` field vectors of all pairs too large for memory; `field` names the count
+    /// (`render.realizations`, `render.configurations`).
+    pub fn field_rows_size(&self, rows: usize, field: &str) -> Result<(), SceneError> {
+        let j = self.pairs();
+        let bytes = rows as f64 * j as f64 * 16.0;
+        if bytes > MAX_COVARIANCE_BYTES {
+            return Err(invalid(
+                field,
+                format!(
+                    "{rows} field vectors of J = {j} pairs need {:.1} GiB",
+                    bytes / (1u64 << 30) as f64
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The speckle means of all pairs, and a warning where a closed form needs a homogeneous
+    /// medium that the scene does not have (the far-field to far-field mean in a voxel grid of
+    /// varying extinction): those means are NaN.
+    pub fn means_or_nan(&self) -> Result<(Vec<Complex64>, Option<String>), SceneError> {
+        match self.scene.means() {
+            Ok(m) => Ok((m, None)),
+            Err(SceneError::InvalidInput { field, reason }) if field == "medium" => {
+                let warning = format!(
+                    "{reason}; the speckle mean of those pairs is written as NaN (the covariance \
+                     does not depend on it)"
+                );
+                let means = self
+                    .scene
+                    .pairs()
+                    .iter()
+                    .map(|&p| match self.scene.mean(p) {
+                        Err(SceneError::InvalidInput { field, .. }) if field == "medium" => {
+                            Ok(Complex64::new(f64::NAN, f64::NAN))
+                        }
+                        other => other,
+                    })
+                    .collect::<Result<_, _>>()?;
+                Ok((means, Some(warning)))
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The scene on its homogeneous box, for the wave solver; refuses grids (naming
+    /// `medium.grid`).
+    pub fn box_scene(&self) -> Result<Scene<HomogeneousBox, Phase>, SceneError> {
+        let b = self.scene.medium().as_box().ok_or_else(|| {
+            invalid(
+                "medium.grid",
+                "the wave solver needs a homogeneous box, not a voxel grid",
+            )
+        })?;
+        let s = &self.scene;
+        Scene::with_types(
+            b.clone(),
+            s.phases().to_vec(),
+            s.wavelength(),
+            s.sources().to_vec(),
+            s.sensors().to_vec(),
+            s.pairs().to_vec(),
+        )
+        .map_err(|e| invalid("scene", e))
+    }
+
+    /// Quantities derived from the scene (coefficients, optical thickness, wavenumber, mean
+    /// cosines, counts), as JSON.
+    pub fn derived(&self) -> Value {
+        let m = self.scene.medium();
+        let size = m.bounds().size();
+        let lambda = self.scene.wavelength();
+        let mean_cosines: Vec<f64> = self
+            .scene
+            .phases()
+            .iter()
+            .map(|p| p.mean_cosine())
+            .collect();
+        let mut d = json!({
+            "dimension": self.dimension().count(),
+            "box_min": m.bounds().min().to_array(),
+            "box_max": m.bounds().max().to_array(),
+            "size_in_wavelengths": (size / lambda).to_array(),
+            "scattering_volume": m.scattering_volume(),
+            "wavelength_in_host": lambda,
+            "wavenumber": self.scene.wavenumber(),
+            "particle_types": m.particle_types(),
+            "phase_mean_cosine": self.scene.phase().mean_cosine(),
+            "phase_mean_cosines": mean_cosines,
+            "n_sources": self.n_sources(),
+            "n_sensors": self.n_sensors(),
+            "pairs": self.pairs(),
+            "medium_info": self.medium_facts,
+        });
+        match m {
+            AnyMedium::Box(b) => {
+                d["medium_kind"] = json!("homogeneous box");
+                d["sigma_s"] = json!(b.scattering());
+                d["sigma_a"] = json!(b.absorption());
+                d["sigma_t"] = json!(b.extinction());
+                d["mean_free_path"] = json!(b.mean_free_path());
+                d["albedo"] = json!(b.scattering() / b.extinction());
+                d["optical_thickness_xyz"] = json!((size * b.extinction()).to_array());
+            }
+            AnyMedium::Grid(g) => {
+                d["medium_kind"] = json!("voxel grid");
+                d["grid_dims"] = json!(g.dims());
+                d["voxel_size"] = json!(g.voxel_size().to_array());
+                d["majorant_sigma_t"] = json!(g.majorant());
+                d["tracking"] =
+                    json!("delta (Woodcock) flights, exact voxel-traversal transmittance");
+            }
+        }
+        d
+    }
+
+    /// `(source, sensor)` of every pair, in order, as JSON.
+    pub fn pair_list(&self) -> Value {
+        Value::Array(
+            self.scene
+                .pairs()
+                .iter()
+                .enumerate()
+                .map(|(j, p)| json!({"j": j, "source": p.source, "sensor": p.sensor}))
+                .collect(),
+        )
+    }
+
+    /// The sensor image, as JSON (`null` when the sensors are not one image).
+    pub fn grid_json(&self) -> Value {
+        match self.grid {
+            Some(g) => json!({"kind": g.kind, "nx": g.nx, "ny": g.ny,
+                              "layout": "sensor index = iy * nx + ix (row-major, iy slow)"}),
+            None => Value::Null,
+        }
+    }
+
+    /// A JSON sidecar of `command`: the scene as parsed, the derived quantities, every expanded
+    /// source and sensor, the pairs, the units and reproducibility facts, with the command's
+    /// `render` settings, `files` and `summary`.
+    pub fn sidecar(&self, command: &str, render: Value, files: Value, summary: Value) -> Value {
+        let (point_source, far_field_sensor) = match self.dimension() {
+            Dimension::Three => (
+                "exp(i k r) / r",
+                "scattering amplitude A(v): u(R v) = A(v) exp(i k R) / R as R -> inf",
+            ),
+            Dimension::Two => (
+                "exp(i k r) / sqrt(r) (flatland)",
+                "flatland scattering amplitude A(v): u(R v) = A(v) exp(i k R) / sqrt(R) as R -> \
+                 inf",
+            ),
+        };
+        json!({
+            "command": command,
+            "scene_file": self.origin,
+            "scene": serde_json::to_value(&self.file).unwrap_or(Value::Null),
+            "derived": self.derived(),
+            "sources": self.sources,
+            "sensors": self.sensors,
+            "sensor_grid": self.grid_json(),
+            "pairs_are_all_combinations": self.all_pairs,
+            "pairs": self.pair_list(),
+            "render": render,
+            "files": files,
+            "summary": summary,
+            "units": {
+                "length": "the scene's unit (that of `wavelength`)",
+                "plane_wave_source": "unit amplitude exp(i k d.x)",
+                "point_source": point_source,
+                "far_field_sensor": far_field_sensor,
+                "point_sensor": "field value u(q)",
+                "covariance": "C[j1, j2] = E[u_j1 conj(u_j2)] - E[u_j1] conj(E[u_j2])",
+            },
+            "reproducibility": {
+                "speckle_cli_version": env!("CARGO_PKG_VERSION"),
+                "deterministic": "the same scene, seed and path counts give bitwise identical \
+                                  arrays for any number of threads",
+                "target": format!("{}-{}", std::env::consts::ARCH, std::env::consts::OS),
+            },
+        })
+    }
+
+    /// A human-readable summary of the problem (what `speckle check` prints). `wave` says what
+    /// the exact wave solver (a crate above this one) makes of the scene.
+    pub fn summary(&self, wave: &str) -> String {
+        let d = self.derived();
+        let f = |k: &str| d[k].clone();
+        let num = |v: &Value| v.as_f64().unwrap_or(0.0);
+        let mut o = String::new();
+        let mut line = |label: &str, text: String| {
+            let _ = writeln!(o, "  {label:<20} {text}");
+        };
+        line("name", self.name.clone());
+        line(
+            "dimension",
+            match self.dimension() {
+                Dimension::Three => "3".to_string(),
+                Dimension::Two => "2 (flatland: the plane z = 0)".to_string(),
+            },
+        );
+        line(
+            "wavelength",
+            format!(
+                "{} in the host (vacuum {}, host index {})",
+                self.scene.wavelength(),
+                self.file.wavelength,
+                self.file.medium.host_index.unwrap_or(1.0)
+            ),
+        );
+        line(
+            "medium",
+            format!(
+                "box {} to {}, size {} wavelengths",
+                f("box_min"),
+                f("box_max"),
+                f("size_in_wavelengths")
+            ),
+        );
+        if d["medium_kind"] == "voxel grid" {
+            line(
+                "voxel grid",
+                format!(
+                    "{} voxels (nx, ny, nz), voxel size {}, majorant sigma_t {:.6}",
+                    f("grid_dims"),
+                    f("voxel_size"),
+                    num(&d["majorant_sigma_t"])
+                ),
+            );
+        } else {
+            line(
+                "coefficients",
+                format!(
+                    "sigma_s {:.6}, sigma_a {:.6}, mean free path {:.6}, albedo {:.6}",
+                    num(&d["sigma_s"]),
+                    num(&d["sigma_a"]),
+                    num(&d["mean_free_path"]),
+                    num(&d["albedo"])
+                ),
+            );
+            line(
+                "optical thickness",
+                format!("{} (x, y, z)", f("optical_thickness_xyz")),
+            );
+        }
+        line(
+            "scattering volume",
+            format!("V = {:.6}", num(&d["scattering_volume"])),
+        );
+        for (i, p) in self
+            .medium_facts
+            .iter()
+            .flat_map(|m| &m.particles)
+            .enumerate()
+        {
+            line(
+                &format!("particles[{i}]"),
+                format!(
+                    "Mie x = {:.4}, Q_sca {:.6}, g {:.4}, N {:.4e}, beta {:.4}",
+                    p.size_parameter, p.q_sca, p.asymmetry, p.number_density, p.beta
+                ),
+            );
+        }
+        let m = &self.file.medium;
+        let phase = match (&self.file.phase, &m.particles, &m.materials) {
+            (Some(p), _, _) => p.describe(),
+            (None, Some(p), _) => format!("Mie, one table per particle type ({})", p.len()),
+            (None, None, Some(m)) => format!(
+                "per material: {}",
+                m.iter()
+                    .map(|m| m.phase.describe())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ),
+            (None, None, None) => PhaseSpec::Isotropic {}.describe(),
+        };
+        line(
+            "phase",
+            format!(
+                "{phase} (mean cosine {:.4}{})",
+                num(&d["phase_mean_cosine"]),
+                if self.scene.phases().len() > 1 {
+                    " for type 0"
+                } else {
+                    ""
+                }
+            ),
+        );
+        line("sources", self.n_sources().to_string());
+        line(
+            "sensors",
+            format!(
+                "{}{}",
+                self.n_sensors(),
+                match self.grid {
+                    Some(g) => format!(" ({} image, {} x {})", g.kind, g.ny, g.nx),
+                    None => String::new(),
+                }
+            ),
+        );
+        line(
+            "pairs J",
+            format!(
+                "{}{}",
+                self.pairs(),
+                if self.all_pairs {
+                    " (all combinations, source-major)"
+                } else {
+                    " (explicit)"
+                }
+            ),
+        );
+        let r = &self.render;
+        line(
+            "covariance",
+            format!(
+                "{} paths, seed {}, {}; {:.1} MiB per J x J array",
+                r.paths,
+                r.seed,
+                coherence_name(r.coherence),
+                (self.pairs() as f64).powi(2) * 16.0 / (1u64 << 20) as f64
+            ),
+        );
+        line(
+            "fields",
+            format!(
+                "{} realizations x {} paths, mean {}",
+                r.realizations,
+                r.paths_per_realization,
+                if r.add_mean { "added" } else { "not added" }
+            ),
+        );
+        line(
+            "wave",
+            format!("{} configurations; {wave}", r.configurations),
+        );
+        line("tracer", r.tracer_json().to_string());
+        line("output", self.out_dir().display().to_string());
+        o
+    }
+}
+
+/// The pairs: all combinations (source-major) when `list` is `None`, else the explicit list,
+/// checked against the expanded counts; and whether they are all combinations.
+fn pairs(
+    list: Option<&[[usize; 2]]>,
+    sources: usize,
+    sensors: usize,
+) -> Result<(Vec<Pair>, bool), SceneError> {
+    let Some(list) = list else {
+        let j = sources.saturating_mul(sensors);
+        if j > MAX_ENDPOINTS * 4 {
+            return Err(invalid(
+                "sensors",
+                format!("{sources} sources x {sensors} sensors = {j} pairs is too many"),
+            ));
+        }
+        return Ok((Pair::all(sources, sensors), true));
+    };
+    if list.is_empty() {
+        return Err(invalid(
+            "pairs",
+            "must not be empty (leave it out for all (source, sensor) combinations)",
+        ));
+    }
+    for (k, [s, d]) in list.iter().enumerate() {
+        if *s >= sources {
+            return Err(invalid(
+                format!("pairs[{k}]"),
+                format!(
+                    "source index {s} is out of range (there are {sources} sources after \
+                     expansion)"
+                ),
+            ));
+        }
+        if *d >= sensors {
+            return Err(invalid(
+                format!("pairs[{k}]"),
+                format!(
+                    "sensor index {d} is out of range (there are {sensors} sensors after \
+                     expansion)"
+                ),
+            ));
+        }
+    }
+    let pairs = list
+        .iter()
+        .map(|&[source, sensor]| Pair { source, sensor })
+        .collect();
+    Ok((pairs, false))
+}

@@ -1,0 +1,161 @@
+//! Checks of single values, each returning a [`SceneError`] that names the field: the one set of
+//! messages every input of the workspace uses (scene files, study files, tool options).
+
+use crate::SceneError;
+use speckle_medium::{Aabb, DVec3, Dimension};
+use std::fmt::Display;
+
+/// A [`SceneError::InvalidInput`] naming `field`.
+pub fn invalid(field: impl Display, reason: impl Display) -> SceneError {
+    SceneError::InvalidInput {
+        field: field.to_string(),
+        reason: reason.to_string(),
+    }
+}
+
+/// `v` if finite and > 0.
+pub fn positive(field: impl Display, v: f64) -> Result<f64, SceneError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("must be finite and > 0 (got {v})")))
+    }
+}
+
+/// `v` if finite and >= 0.
+pub fn non_negative(field: impl Display, v: f64) -> Result<f64, SceneError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("must be finite and >= 0 (got {v})")))
+    }
+}
+
+/// `v` if finite.
+pub fn finite(field: impl Display, v: f64) -> Result<f64, SceneError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("must be finite (got {v})")))
+    }
+}
+
+/// An output prefix: non-empty, not starting with `.`, letters, digits, `_`, `-` and `.` only
+/// (so that it names files in the output directory and nowhere else).
+pub fn name(name: &str) -> Result<(), SceneError> {
+    let ok = !name.is_empty()
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    if ok {
+        Ok(())
+    } else {
+        Err(invalid(
+            "name",
+            format!(
+                "must be non-empty, not start with '.', and use only letters, digits, '_', '-' \
+                 and '.' (got {name:?})"
+            ),
+        ))
+    }
+}
+
+/// A vector of finite components (`field[i]` names a bad one).
+pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
+    for (i, c) in v.iter().enumerate() {
+        finite(format!("{field}[{i}]"), *c)?;
+    }
+    Ok(DVec3::from_array(v))
+}
+
+/// A finite non-zero vector, normalised.
+pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
+    let d = vec3(field, v)?;
+    let len = d.length();
+    if len > 0.0 && len.is_finite() {
+        Ok(d / len)
+    } else {
+        Err(invalid(
+            field,
+            format!("must be a non-zero vector (got {v:?})"),
+        ))
+    }
+}
+
+/// `v` after checking that it lies in the plane `z = 0` when `dim` is flatland.
+pub fn planar(field: &str, v: DVec3, dim: Dimension) -> Result<DVec3, SceneError> {
+    if dim == Dimension::Two && v.z != 0.0 {
+        return Err(invalid(
+            format!("{field}[2]"),
+            format!(
+                "must be 0 in flatland (dimension = 2): everything lies in the plane z = 0 \
+                 (got {})",
+                v.z
+            ),
+        ));
+    }
+    Ok(v)
+}
+
+/// A finite position, in the plane `z = 0` in flatland.
+pub fn position(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, SceneError> {
+    planar(field, vec3(field, v)?, dim)
+}
+
+/// A unit direction, in the plane `z = 0` in flatland.
+pub fn flat_direction(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, SceneError> {
+    planar(field, vec3(field, v)?, dim)?;
+    direction(field, v)
+}
+
+/// `p` if it lies outside the box `b`: point endpoints must (`what` describes `p`).
+pub fn outside(field: &str, p: DVec3, b: &Aabb, what: &str) -> Result<DVec3, SceneError> {
+    if b.contains(p) {
+        Err(invalid(
+            field,
+            format!(
+                "{what} {:?} lies in or on the medium (box from {:?} to {:?}); point endpoints \
+                 must be outside it",
+                p.to_array(),
+                b.min().to_array(),
+                b.max().to_array()
+            ),
+        ))
+    } else {
+        Ok(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_name_the_field() {
+        assert_eq!(
+            positive("medium.mean_free_path", -1.0)
+                .unwrap_err()
+                .to_string(),
+            "medium.mean_free_path: must be finite and > 0 (got -1)"
+        );
+        assert_eq!(
+            direction("sources[2].direction", [0.0; 3])
+                .unwrap_err()
+                .to_string(),
+            "sources[2].direction: must be a non-zero vector (got [0.0, 0.0, 0.0])"
+        );
+        assert!(
+            vec3("d", [0.0, f64::NAN, 1.0])
+                .unwrap_err()
+                .to_string()
+                .starts_with("d[1]: must be finite")
+        );
+        assert!(name("a-b_c.d").is_ok());
+        for bad in ["", ".x", "a/b", "a b"] {
+            assert!(name(bad).is_err(), "{bad:?}");
+        }
+        let flat = planar("p", DVec3::new(0.0, 1.0, 0.5), Dimension::Two).unwrap_err();
+        assert!(flat.to_string().starts_with("p[2]: must be 0 in flatland"));
+    }
+}

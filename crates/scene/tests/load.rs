@@ -1,0 +1,232 @@
+//! Loading scene files: generators expand in order with their defaults filled in, flatland
+//! scenes stay in the plane, tables load relative to the scene, overrides are validated like
+//! the file's values. (The CLI's tests check the error messages of malformed scenes.)
+
+use speckle_endpoints::{Sensor, Source};
+use speckle_medium::{DVec3, Dimension, Medium};
+use speckle_phase::{Phase, PhaseFunction};
+use speckle_scene::schema::SensorSpec;
+use speckle_scene::{LoadError, Overrides, Problem, load_str};
+use std::path::Path;
+
+const OK: &str = r#"
+wavelength = 1.0
+[medium]
+size = [10, 10, 4]
+mean_free_path = 5
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0, 90]
+[[sensors]]
+type = "far_grid"
+theta_x_deg = [-10, 10]
+theta_y_deg = [0, 0]
+nx = 3
+ny = 1
+"#;
+
+fn load(text: &str) -> Result<Problem, LoadError> {
+    load_str(text, "t.toml", Path::new("."), "t", &Overrides::default())
+}
+
+#[test]
+fn generators_expand_in_order() {
+    let p = load(OK).unwrap();
+    assert_eq!((p.n_sources(), p.n_sensors(), p.pairs()), (2, 3, 6));
+    let Source::PlaneWave { direction } = p.scene.sources()[1] else {
+        panic!()
+    };
+    assert!((direction - DVec3::X).length() < 1e-12);
+    let Sensor::FarField { direction } = p.scene.sensors()[0] else {
+        panic!()
+    };
+    assert!(direction.x < 0.0 && direction.y.abs() < 1e-15);
+    assert!((direction.x.atan2(direction.z).to_degrees() + 10.0).abs() < 1e-9);
+    assert!(p.grid.is_none());
+    assert_eq!(p.name, "t");
+    assert_eq!(p.sources[1].tilt_deg, Some(90.0));
+}
+
+fn far_directions(p: &Problem) -> Vec<DVec3> {
+    p.scene
+        .sensors()
+        .iter()
+        .map(|s| match *s {
+            Sensor::FarField { direction } => direction,
+            Sensor::Point { .. } => panic!("a point sensor"),
+        })
+        .collect()
+}
+
+#[test]
+fn far_arc_expands_in_angle_order() {
+    // 3D defaults: +z rotated about +y, so positive angles lean towards +x.
+    let text = OK.replace(
+        "type = \"far_grid\"\ntheta_x_deg = [-10, 10]\ntheta_y_deg = [0, 0]\nnx = 3\nny = 1",
+        "type = \"far_arc\"\nangles_deg = [-30, 60]\nn = 4\n[[sensors]]\n\
+         type = \"far_arc\"\ncenter = [1, 0, 0]\naxis = [0, 0, 2]\n\
+         angles_deg = [45, 90]\nn = 1",
+    );
+    let p = load(&text).unwrap();
+    let d = far_directions(&p);
+    assert_eq!(d.len(), 5);
+    for (k, deg) in [-30.0f64, 0.0, 30.0, 60.0].into_iter().enumerate() {
+        let (s, c) = deg.to_radians().sin_cos();
+        assert!(
+            (d[k] - DVec3::new(s, 0.0, c)).length() < 1e-12,
+            "{k}: {}",
+            d[k]
+        );
+        assert_eq!(p.sensors[k].angle_deg, Some(deg), "{k}");
+        assert_eq!(p.sensors[k].k, Some(k));
+    }
+    // n = 1 gives the first angle, about the given (normalised) axis.
+    let h = 0.5f64.sqrt();
+    assert!((d[4] - DVec3::new(h, h, 0.0)).length() < 1e-12, "{}", d[4]);
+    assert_eq!(p.sensors[4].angle_deg, Some(45.0));
+    // The defaults are filled in for the sidecar.
+    let SensorSpec::FarArc { center, axis, .. } = &p.file.sensors[0] else {
+        panic!()
+    };
+    assert_eq!(
+        (*center, *axis),
+        (Some([0.0, 0.0, 1.0]), Some([0.0, 1.0, 0.0]))
+    );
+    // The sidecar's description of a sensor.
+    let json = serde_json::to_value(&p.sensors[1]).unwrap();
+    assert_eq!(
+        json,
+        serde_json::json!({"entry": 0, "type": "far", "direction": d[1].to_array(),
+                           "k": 1, "angle_deg": 0.0})
+    );
+}
+
+#[test]
+fn flatland_generators_default_to_the_plane() {
+    let text = r#"
+dimension = 2
+wavelength = 1.0
+[medium]
+size = [10, 6, 0]
+center = [1, 0, 0]
+mean_free_path = 5
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0, 90]
+[[sensors]]
+type = "far_arc"
+angles_deg = [0, 270]
+n = 4
+"#;
+    let p = load(text).unwrap();
+    assert_eq!(p.dimension(), Dimension::Two);
+    let b = p.scene.medium().bounds();
+    assert_eq!(
+        (b.min().to_array(), b.max().to_array()),
+        ([-4.0, -3.0, 0.0], [6.0, 3.0, 0.0])
+    );
+    assert!(matches!(p.scene.phase(), Phase::FlatIsotropic));
+    // +y rotated counter-clockwise about +z: +y, -x, -y, +x; exactly z = 0.
+    let want = [DVec3::Y, -DVec3::X, -DVec3::Y, DVec3::X];
+    for (v, w) in far_directions(&p).iter().zip(want) {
+        assert!((*v - w).length() < 1e-12 && v.z == 0.0, "{v} vs {w}");
+    }
+    let Source::PlaneWave { direction } = p.scene.sources()[1] else {
+        panic!()
+    };
+    assert!((direction + DVec3::X).length() < 1e-12 && direction.z == 0.0);
+    assert_eq!(p.pair_shape(), vec![2, 4]);
+}
+
+#[test]
+fn flatland_tables_take_signed_angles_and_synonyms() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("a.csv"),
+        "theta_deg,re_s,im_s\n0,1,0\n90,2,0.5\n180,0.5,0\n270,0.2,0\n360,1,0\n",
+    )
+    .unwrap();
+    let text = r#"
+dimension = 2
+wavelength = 1.0
+[medium]
+size = [10, 6, 0]
+mean_free_path = 5
+[phase]
+type = "tabulated"
+file = "a.csv"
+[[sources]]
+type = "plane"
+direction = [0, 1, 0]
+[[sensors]]
+type = "far"
+direction = [1, 0, 0]
+"#;
+    let p = load_str(text, "t.toml", dir.path(), "t", &Overrides::default()).unwrap();
+    let Phase::FlatTabulated(t) = p.scene.phase() else {
+        panic!("{:?}", p.scene.phase())
+    };
+    // Asymmetric: +90 degrees (counter-clockwise) is the bright side.
+    let inc = DVec3::X;
+    assert!(
+        t.amplitude_between(inc, DVec3::Y).norm()
+            > 5.0 * t.amplitude_between(inc, -DVec3::Y).norm()
+    );
+}
+
+#[test]
+fn overrides_apply_before_validation() {
+    let o = Overrides {
+        paths: Some(0),
+        ..Default::default()
+    };
+    let e = load_str(OK, "t.toml", Path::new("."), "t", &o).unwrap_err();
+    assert_eq!(e.field(), Some("render.paths"), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("t.toml: render.paths: must be >= 2"),
+        "{e}"
+    );
+    let o = Overrides {
+        seed: Some(9),
+        forward_only: true,
+        out: Some("elsewhere".into()),
+        ..Default::default()
+    };
+    let p = load_str(OK, "t.toml", Path::new("."), "t", &o).unwrap();
+    assert_eq!(p.render.seed, 9);
+    assert_eq!(p.render.coherence, speckle_paths::Coherence::ForwardOnly);
+    assert_eq!(p.out_dir(), Path::new("elsewhere"));
+}
+
+#[test]
+fn the_summary_and_the_sidecar_describe_the_scene() {
+    let p = load(OK).unwrap();
+    let s = p.summary("not computed");
+    assert!(
+        s.contains("  pairs J              6 (all combinations"),
+        "{s}"
+    );
+    assert!(
+        s.contains("  wave                 200 configurations; not computed"),
+        "{s}"
+    );
+    let meta = p.sidecar(
+        "check",
+        serde_json::json!({}),
+        serde_json::json!({}),
+        serde_json::json!({}),
+    );
+    assert_eq!(meta["derived"]["n_sources"], 2);
+    assert_eq!(meta["derived"]["mean_free_path"], 5.0);
+    assert_eq!(
+        meta["scene"]["sources"][0]["axis"],
+        serde_json::json!([0.0, 1.0, 0.0])
+    );
+    assert_eq!(meta["sources"][1]["tilt_deg"], 90.0);
+    assert_eq!(
+        meta["derived"]["phase_mean_cosine"],
+        p.scene.phase().mean_cosine()
+    );
+    assert!(meta["derived"]["medium_info"].is_null());
+}

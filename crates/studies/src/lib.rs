@@ -1,0 +1,33 @@
+//! Studies built on the renderers: a study reads a file of its own, derives one scene per point
+//! of a sweep, renders them with the estimators and reduces the results to curves with error
+//! bars and their theory, as plain data that a caller writes or plots.
+//!
+//! - [`memory`]: the memory effect versus wavelength for Mie spheres in a slab (Bar et al. 2019,
+//!   Fig. 11), against diffusion theory (Eq. 39);
+//! - [`plot`]: its figure, an SVG drawn with `plotters`;
+//! - [`examples`]: the embedded study files of both panels of Fig. 11.
+//!
+//! Design decision: a study is a library, not a command: its schema, validation, band
+//! preparation, render, statistics and figure live here, so that a binding reaches all of it;
+//! the `speckle` binary only parses arguments, shows progress and writes files. Randomness comes
+//! from the estimators' counter-based streams with seeds derived per sub-render
+//! ([`speckle_stats::rng::derive_seed`]), so a study is bitwise reproducible for any thread
+//! count; standard errors are jackknife estimates ([`speckle_stats::jackknife`]).
+
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod examples;
+pub mod memory;
+pub mod plot;
+
+/// Errors of a study.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StudyError {
+    /// The study file, or a value derived from it, is invalid (the error names the field).
+    #[error(transparent)]
+    Input(#[from] speckle_scene::LoadError),
+    /// A render failed or was cancelled.
+    #[error(transparent)]
+    Render(#[from] speckle_estimators::EstimatorError),
+}
