@@ -4,7 +4,7 @@
 //! For every vacuum wavelength `lambda` of a study, Lorenz-Mie theory
 //! (`speckle_phase::MieSphere`) gives one sphere's cross sections `c_sca`, `c_abs`, its asymmetry
 //! `g` and its tabulated scalar amplitude function; with the number density `N` the slab has
-//! `sigma_s = N c_sca` and `sigma_a = N c_abs` (`notes/conventions.md`). The slab, `L` thick
+//! `sigma_s = N c_sca` and `sigma_a = N c_abs` (`docs/conventions.md`). The slab, `L` thick
 //! along z and `lateral_factor L` wide in x and y, is lit by plane waves `i_n` tilted by
 //! `theta_n` from +z about +y and seen in transmission by far-field sensors `v_n = i_n`; the
 //! covariance of the pairs `(i_n, v_n)` (Alg. 1) gives the normalised intensity correlation
