@@ -183,6 +183,18 @@ pub fn render_intensity<M: Medium, P: PhaseFunction>(
     render(scene, options, &NoFactor, true, progress)
 }
 
+/// [`render_intensity`] with a per-vertex path factor (see [`render_covariance_with`]): with a
+/// complex factor the diagonal is `sum w f |a_j|^2`, complex. With [`NoFactor`] this is
+/// [`render_intensity`], bitwise.
+pub fn render_intensity_with<M: Medium, P: PhaseFunction, F: PathFactor>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    factor: &F,
+    progress: &dyn Progress,
+) -> Result<CovarianceEstimate, EstimatorError> {
+    render(scene, options, factor, true, progress)
+}
+
 /// The covariance (or its diagonal) with a path factor: every estimator of this module.
 fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
     scene: &Scene<M, P>,
@@ -353,6 +365,15 @@ mod tests {
         }
     }
 
+    /// The options of the factor tests.
+    fn factor_options() -> CovarianceOptions {
+        CovarianceOptions {
+            paths: 3001,
+            seed: 9,
+            ..Default::default()
+        }
+    }
+
     fn bits(m: &MatrixEstimate) -> Vec<(u64, u64)> {
         m.value
             .as_slice()
@@ -369,11 +390,7 @@ mod tests {
     #[test]
     fn real_path_factors_are_exact_reweightings() {
         let s = scene();
-        let opts = CovarianceOptions {
-            paths: 3001,
-            seed: 9,
-            ..Default::default()
-        };
+        let opts = factor_options();
         let plain = render_covariance(&s, &opts, &NoProgress).unwrap();
         let one = Window {
             keep: u32::MAX,
@@ -407,18 +424,14 @@ mod tests {
         assert!(short.multiple.value.get(0, 0).re < plain.multiple.value.get(0, 0).re);
     }
 
-    /// A complex factor goes through the general (complex-weight, every entry) accumulation: a
-    /// constant phase `e^{i theta}` on every contribution gives `e^{i theta} C`, entry by entry,
-    /// to rounding, with the standard errors of the rotated sum; and `1 + 0i` gives `C` to
-    /// rounding, in both the full and the diagonal layout.
+    /// A complex factor goes through the general (complex-weight) accumulation: a constant phase
+    /// `e^{i theta}` on every contribution gives `e^{i theta} C`, entry by entry, to rounding, in
+    /// the full layout (every entry) and the diagonal one; `1 + 0i` gives `C` and its standard
+    /// errors to rounding.
     #[test]
     fn complex_path_factors_use_the_general_accumulation() {
         let s = scene();
-        let opts = CovarianceOptions {
-            paths: 3001,
-            seed: 9,
-            ..Default::default()
-        };
+        let opts = factor_options();
         let plain = render_covariance(&s, &opts, &NoProgress).unwrap();
         let theta = 0.7f64;
         let phase = Complex64::from_polar(1.0, theta);
@@ -440,6 +453,16 @@ mod tests {
                         "({r},{q}): {got} vs {want}"
                     );
                 }
+            }
+            // The general diagonal: the rotated intensities.
+            let d = render_intensity_with(&s, &opts, &f, &NoProgress).unwrap();
+            for r in 0..j {
+                let want = rot * plain.total.value.get(r, r);
+                let got = d.total.value.get(r, 0);
+                assert!(
+                    (got - want).norm() < 1e-12 * scale,
+                    "({r}): {got} vs {want}"
+                );
             }
             if value == Complex64::ONE {
                 // The standard errors agree to rounding too (same batches, same sums).

@@ -46,7 +46,7 @@ mod fields;
 
 pub use covariance::{
     CovarianceEstimate, CovarianceOptions, render_covariance, render_covariance_with,
-    render_intensity, render_single_scattering,
+    render_intensity, render_intensity_with, render_single_scattering,
 };
 pub use fields::{FieldEstimate, FieldOptions, render_fields};
 // The types every caller of the estimators handles, defined in the crates below.

@@ -131,36 +131,7 @@ mod tests {
         ks_with(|u| sampled.sample_cosine(u), &cdf, seed, KS_SAMPLES)
     }
 
-    fn mixtures() -> Vec<(&'static str, VmfMixture)> {
-        vec![
-            (
-                "back lobe",
-                VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-4.0, 0.4)]).unwrap(),
-            ),
-            (
-                "kappa 3000",
-                VmfMixture::new(vec![(3000.0, 0.2), (40.0, 0.5), (0.5, 0.3)]).unwrap(),
-            ),
-            ("DC", VmfMixture::new(vec![(0.0, 1.0), (2.0, 0.5)]).unwrap()),
-            (
-                "tiny and negative",
-                VmfMixture::new(vec![(-1e-13, 1.0), (-0.5, 1.0), (1e-9, 0.1)]).unwrap(),
-            ),
-            (
-                "fitted HG 0.98",
-                VmfMixture::new(vec![
-                    (0.0, 0.2068),
-                    (1.478, 0.3093),
-                    (8.087, 0.1570),
-                    (36.47, 0.1060),
-                    (168.8, 0.0725),
-                    (822.8, 0.0442),
-                    (4265.9, 0.0152),
-                ])
-                .unwrap(),
-            ),
-        ]
-    }
+    use speckle_vmf::testing::mixtures;
 
     #[test]
     fn sampler_passes_ks() {

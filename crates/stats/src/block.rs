@@ -44,6 +44,63 @@ use num_complex::Complex64;
 /// partly filled blocks, so `K` beyond the vertices of a batch would not help either.
 pub const BLOCK_COLUMNS: usize = 64;
 
+/// The bookkeeping both blocks share: the block depth, the columns filled so far, whether the
+/// target holds stale values, and the AVX token that ends every update with `vzeroupper`.
+#[derive(Debug, Clone)]
+struct Fill {
+    capacity: usize,
+    filled: usize,
+    /// Whether the target is stale (see `start_sum`): the next update replaces instead of adds.
+    stale: bool,
+    /// AVX, when the CPU has it: each update ends with `vzeroupper` (see the module docs).
+    #[cfg(target_arch = "x86_64")]
+    avx: Option<Avx>,
+}
+
+impl Fill {
+    fn new(k: usize) -> Self {
+        Self {
+            capacity: k.max(1),
+            filled: 0,
+            stale: false,
+            #[cfg(target_arch = "x86_64")]
+            avx: Avx::try_new(),
+        }
+    }
+
+    fn start_sum(&mut self) {
+        self.filled = 0;
+        self.stale = true;
+    }
+
+    /// Counts a pushed column; true when the block is full.
+    #[inline]
+    fn pushed(&mut self) -> bool {
+        self.filled += 1;
+        self.filled == self.capacity
+    }
+
+    /// How the next product enters the target.
+    fn accum(&self) -> Accum {
+        if self.stale {
+            Accum::Replace
+        } else {
+            Accum::Add
+        }
+    }
+
+    /// After an update: clean upper register halves for the SSE code that follows (module
+    /// docs), an empty block, a current target.
+    fn updated(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx) = self.avx {
+            avx._mm256_zeroupper();
+        }
+        self.filled = 0;
+        self.stale = false;
+    }
+}
+
 /// Accumulates `sum_n w_n a_n a_n^H` (real `w_n`) into the upper triangle of a row-major `J x J`
 /// buffer by rank-`K` updates; the strict lower triangle is left with unspecified values.
 ///
@@ -80,33 +137,22 @@ pub const BLOCK_COLUMNS: usize = 64;
 #[derive(Debug, Clone)]
 pub struct HermitianBlock {
     j: usize,
-    capacity: usize,
-    /// Filled columns of `block`.
-    filled: usize,
-    /// Whether the target's triangle is stale (see [`Self::start_sum`]).
-    stale: bool,
+    fill: Fill,
     /// Column-major `J x capacity`; column `n` is `sqrt(w_n) conj(a_n)`.
     block: Vec<Complex64>,
     /// Scratch for the rank-1 fallback (negative weights); empty until needed.
     conj: Vec<Complex64>,
-    /// AVX, when the CPU has it: each update ends with `vzeroupper` (see the module docs).
-    #[cfg(target_arch = "x86_64")]
-    avx: Option<Avx>,
 }
 
 impl HermitianBlock {
     /// An accumulator for vectors of length `j` with blocks of `k` columns (at least 1).
     pub fn new(j: usize, k: usize) -> Self {
-        let capacity = k.max(1);
+        let fill = Fill::new(k);
         Self {
             j,
-            capacity,
-            filled: 0,
-            stale: false,
-            block: vec![Complex64::ZERO; j * capacity],
+            block: vec![Complex64::ZERO; j * fill.capacity],
+            fill,
             conj: Vec::new(),
-            #[cfg(target_arch = "x86_64")]
-            avx: Avx::try_new(),
         }
     }
 
@@ -122,7 +168,7 @@ impl HermitianBlock {
 
     /// Block depth `K`.
     pub fn block_columns(&self) -> usize {
-        self.capacity
+        self.fill.capacity
     }
 
     /// Starts a new sum in a target whose upper triangle holds stale values (a recycled buffer):
@@ -130,8 +176,7 @@ impl HermitianBlock {
     /// it, and a [`flush`](Self::flush) before any update clears it. Spares clearing `J^2`
     /// entries before the sum starts.
     pub fn start_sum(&mut self) {
-        self.filled = 0;
-        self.stale = true;
+        self.fill.start_sum();
     }
 
     /// Adds `w a a^H` to the sum held in `m` (row-major `J x J`, upper triangle): stored in the
@@ -156,12 +201,12 @@ impl HermitianBlock {
             return;
         }
         let s = w.sqrt();
-        let col = &mut self.block[self.filled * self.j..(self.filled + 1) * self.j];
+        let n = self.fill.filled;
+        let col = &mut self.block[n * self.j..(n + 1) * self.j];
         for (b, x) in col.iter_mut().zip(a) {
             *b = Complex64::new(s * x.re, -(s * x.im));
         }
-        self.filled += 1;
-        if self.filled == self.capacity {
+        if self.fill.pushed() {
             self.flush(m);
         }
     }
@@ -174,13 +219,13 @@ impl HermitianBlock {
             self.j * self.j,
             "HermitianBlock::flush: matrix size"
         );
-        let (j, k) = (self.j, self.filled);
+        let (j, k) = (self.j, self.fill.filled);
         if k == 0 {
-            if self.stale {
+            if self.fill.stale {
                 for r in 0..j {
                     m[r * j + r..(r + 1) * j].fill(Complex64::ZERO);
                 }
-                self.stale = false;
+                self.fill.stale = false;
             }
             return;
         }
@@ -191,11 +236,7 @@ impl HermitianBlock {
         matmul(
             d,
             BlockStructure::TriangularLower,
-            if self.stale {
-                Accum::Replace
-            } else {
-                Accum::Add
-            },
+            self.fill.accum(),
             b,
             BlockStructure::Rectangular,
             b.adjoint(),
@@ -203,13 +244,7 @@ impl HermitianBlock {
             Complex64::ONE,
             Par::Seq,
         );
-        // Clean upper register halves for the SSE code that follows (module docs).
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx) = self.avx {
-            avx._mm256_zeroupper();
-        }
-        self.filled = 0;
-        self.stale = false;
+        self.fill.updated();
     }
 }
 
@@ -259,33 +294,22 @@ pub fn rank1_upper(m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64],
 #[derive(Debug, Clone)]
 pub struct GeneralBlock {
     j: usize,
-    capacity: usize,
-    /// Filled columns of the blocks.
-    filled: usize,
-    /// Whether the target holds stale values (see [`Self::start_sum`]).
-    stale: bool,
+    fill: Fill,
     /// Column-major `J x capacity`; column `n` is `b_n` (conjugated by the product).
     b: Vec<Complex64>,
     /// Column-major `J x capacity`; column `n` is `w_n a_n`.
     wa: Vec<Complex64>,
-    /// AVX, when the CPU has it: each update ends with `vzeroupper` (see the module docs).
-    #[cfg(target_arch = "x86_64")]
-    avx: Option<Avx>,
 }
 
 impl GeneralBlock {
     /// An accumulator for vectors of length `j` with blocks of `k` columns (at least 1).
     pub fn new(j: usize, k: usize) -> Self {
-        let capacity = k.max(1);
+        let fill = Fill::new(k);
         Self {
             j,
-            capacity,
-            filled: 0,
-            stale: false,
-            b: vec![Complex64::ZERO; j * capacity],
-            wa: vec![Complex64::ZERO; j * capacity],
-            #[cfg(target_arch = "x86_64")]
-            avx: Avx::try_new(),
+            b: vec![Complex64::ZERO; j * fill.capacity],
+            wa: vec![Complex64::ZERO; j * fill.capacity],
+            fill,
         }
     }
 
@@ -303,8 +327,7 @@ impl GeneralBlock {
     /// are dropped, the next update overwrites the target instead of adding to it, and a
     /// [`flush`](Self::flush) before any update clears it.
     pub fn start_sum(&mut self) {
-        self.filled = 0;
-        self.stale = true;
+        self.fill.start_sum();
     }
 
     /// Adds `w a b^H` to the sum held in `m` (row-major `J x J`). Panics if `a` or `b` do not
@@ -319,13 +342,13 @@ impl GeneralBlock {
         if w == Complex64::ZERO {
             return;
         }
-        let col = self.filled * self.j..(self.filled + 1) * self.j;
+        let n = self.fill.filled;
+        let col = n * self.j..(n + 1) * self.j;
         self.b[col.clone()].copy_from_slice(b);
         for (y, x) in self.wa[col].iter_mut().zip(a) {
             *y = w * x;
         }
-        self.filled += 1;
-        if self.filled == self.capacity {
+        if self.fill.pushed() {
             self.flush(m);
         }
     }
@@ -334,11 +357,11 @@ impl GeneralBlock {
     /// `m` holds the complete sum. Panics if `m.len() != J * J`.
     pub fn flush(&mut self, m: &mut [Complex64]) {
         assert_eq!(m.len(), self.j * self.j, "GeneralBlock::flush: matrix size");
-        let (j, k) = (self.j, self.filled);
+        let (j, k) = (self.j, self.fill.filled);
         if k == 0 {
-            if self.stale {
+            if self.fill.stale {
                 m.fill(Complex64::ZERO);
-                self.stale = false;
+                self.fill.stale = false;
             }
             return;
         }
@@ -349,11 +372,7 @@ impl GeneralBlock {
         let wa = MatRef::from_column_major_slice(&self.wa[..j * k], j, k);
         matmul_with_conj(
             d,
-            if self.stale {
-                Accum::Replace
-            } else {
-                Accum::Add
-            },
+            self.fill.accum(),
             b,
             Conj::Yes,
             wa.transpose(),
@@ -361,12 +380,7 @@ impl GeneralBlock {
             Complex64::ONE,
             Par::Seq,
         );
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx) = self.avx {
-            avx._mm256_zeroupper();
-        }
-        self.filled = 0;
-        self.stale = false;
+        self.fill.updated();
     }
 }
 

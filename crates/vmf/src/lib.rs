@@ -91,3 +91,43 @@ pub enum VmfError {
     #[error("target: {0}")]
     InvalidTarget(String),
 }
+
+#[cfg(any(test, feature = "testing"))]
+pub mod testing {
+    //! Fixtures shared by the tests of this crate and, with the `testing` feature, of
+    //! `speckle-phase` (whose Kolmogorov-Smirnov tests sample the same mixtures).
+    use crate::VmfMixture;
+
+    /// Mixtures that stress the sampler and the closed forms: a back lobe, `kappa = 3000`, a DC
+    /// lobe, tiny and negative concentrations, and a fit of HG 0.98.
+    pub fn mixtures() -> Vec<(&'static str, VmfMixture)> {
+        vec![
+            (
+                "back lobe",
+                VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-4.0, 0.4)]).unwrap(),
+            ),
+            (
+                "kappa 3000",
+                VmfMixture::new(vec![(3000.0, 0.2), (40.0, 0.5), (0.5, 0.3)]).unwrap(),
+            ),
+            ("DC", VmfMixture::new(vec![(0.0, 1.0), (2.0, 0.5)]).unwrap()),
+            (
+                "tiny and negative",
+                VmfMixture::new(vec![(-1e-13, 1.0), (-0.5, 1.0), (1e-9, 0.1)]).unwrap(),
+            ),
+            (
+                "fitted HG 0.98",
+                VmfMixture::new(vec![
+                    (0.0, 0.2068),
+                    (1.478, 0.3093),
+                    (8.087, 0.1570),
+                    (36.47, 0.1060),
+                    (168.8, 0.0725),
+                    (822.8, 0.0442),
+                    (4265.9, 0.0152),
+                ])
+                .unwrap(),
+            ),
+        ]
+    }
+}
