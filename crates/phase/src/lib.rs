@@ -147,15 +147,16 @@ pub enum Phase {
     Tabulated(Arc<TabulatedAmplitude>),
     /// A mixture of Henyey-Greenstein lobes with a real positive amplitude `sqrt(rho)`.
     HgMixture(Arc<HgMixture>),
+    // The 3D variants come first and together, so `dimension` is one comparison.
+    /// A mixture of vMF lobes with a real positive amplitude (Bar et al. 2020, Eq. 28), as fitted
+    /// by [`fit_vmf`]; sampled exactly, closed-form mean cosine.
+    Vmf(Arc<VmfMixture>),
     /// Isotropic flatland scattering.
     FlatIsotropic,
     /// Flatland Henyey-Greenstein (wrapped Cauchy).
     FlatHenyeyGreenstein(FlatHenyeyGreenstein),
     /// A flatland complex amplitude tabulated over `[0, 2 pi]`.
     FlatTabulated(Arc<FlatTabulatedAmplitude>),
-    /// A mixture of vMF lobes with a real positive amplitude (Bar et al. 2020, Eq. 28), as fitted
-    /// by [`fit_vmf`]; sampled exactly, closed-form mean cosine.
-    Vmf(Arc<VmfMixture>),
 }
 
 impl Phase {
