@@ -40,9 +40,24 @@ pub fn finite(field: impl Display, v: f64) -> Result<f64, SceneError> {
     }
 }
 
-/// An output prefix: non-empty, not starting with `.`, letters, digits, `_`, `-` and `.` only
-/// (so that it names files in the output directory and nowhere else).
+/// Longest output prefix: file names add at most about 50 characters to it
+/// (`.wave.r12345.s123.png`, `.cov_multiple.npy`), within the 255 bytes file systems allow.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// An output prefix: non-empty, at most [`MAX_NAME_CHARS`] characters, not starting with `.`,
+/// letters, digits, `_`, `-` and `.` only (so that it names files in the output directory and
+/// nowhere else).
 pub fn name(name: &str) -> Result<(), SceneError> {
+    if name.len() > MAX_NAME_CHARS {
+        return Err(invalid(
+            "name",
+            format!(
+                "has {} characters, more than {MAX_NAME_CHARS}: the output files' names would be \
+                 longer than file systems allow",
+                name.chars().count()
+            ),
+        ));
+    }
     let ok = !name.is_empty()
         && !name.starts_with('.')
         && name
@@ -55,7 +70,8 @@ pub fn name(name: &str) -> Result<(), SceneError> {
             "name",
             format!(
                 "must be non-empty, not start with '.', and use only letters, digits, '_', '-' \
-                 and '.' (got {name:?})"
+                 and '.' (got \"{}\")",
+                crate::safe::excerpt(name)
             ),
         ))
     }
