@@ -2,10 +2,10 @@
 //! anything else 1.
 
 use speckle::estimators::EstimatorError;
+use speckle::scene::safe::printable;
 use speckle::scene::tools::fit::FitError;
 use speckle::scene::{LoadError, SceneError};
 use speckle::studies::StudyError;
-use speckle::scene::safe::printable;
 use speckle::wave::WaveError;
 use speckle_output::OutputError;
 use std::process::ExitCode;

@@ -86,8 +86,7 @@ pub fn mean_field<M: Medium, P: PhaseFunction>(
     src: Source,
     sen: Sensor,
 ) -> Result<Complex64, EndpointError> {
-    Ok(mean_field_cancellable(m, phases, k, src, sen, &|| false)?
-        .expect("never cancelled"))
+    Ok(mean_field_cancellable(m, phases, k, src, sen, &|| false)?.expect("never cancelled"))
 }
 
 /// [`mean_field`], asking `cancelled` between the rows of its quadrature (a few hundred
@@ -170,7 +169,6 @@ const GL4: [(f64, f64); 4] = [
 fn box_integral(b: &speckle_medium::Aabb, k: f64, sigma_t: f64, i: DVec3, v: DVec3) -> Complex64 {
     box_integral_refined(b, k, sigma_t, i, v, 1, &|| false).expect("never cancelled")
 }
-
 
 /// [`box_integral`] with `refine` times the panels per axis (tests estimate the quadrature error
 /// by halving the panel width). Each point is written `x = y - t v` with `y` on the face where

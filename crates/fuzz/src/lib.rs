@@ -82,7 +82,10 @@ pub fn sandbox(root: &Path) -> std::path::PathBuf {
         "amp2d.csv",
         b"theta_rad,re,im\n0,1,0\n1.5,0.8,0.3\n3.14159,0.3,0\n4.5,0.2,-0.1\n6.2831853,1,0\n",
     );
-    w("bom.csv", "\u{feff}mu,re,im\n-1,0.2,0\n0,0.5,0\n1,1,0\n".as_bytes());
+    w(
+        "bom.csv",
+        "\u{feff}mu,re,im\n-1,0.2,0\n0,0.5,0\n1,1,0\n".as_bytes(),
+    );
     w("secret.csv", format!("{SECRET}\n{SECRET},1,2\n").as_bytes());
     w(
         "grid.npy",
@@ -139,10 +142,39 @@ impl Rng {
 
 /// Extreme and ordinary numbers a mutation puts in place of a number.
 const NUMBERS: &[&str] = &[
-    "0", "-1", "1", "2", "0.5", "-0.0", "1e308", "-1e308", "1.7976931348623157e308", "5e-324",
-    "1e-300", "1e-200", "1e200", "1e19", "1e12", "1e-12", "2000", "1e6", "nan", "inf", "-inf",
-    "18446744073709551615", "9223372036854775807", "4294967295", "65536", "1048577", "3",
-    "0.999999", "-0.999999", "89.9999", "90", "360", "1e15",
+    "0",
+    "-1",
+    "1",
+    "2",
+    "0.5",
+    "-0.0",
+    "1e308",
+    "-1e308",
+    "1.7976931348623157e308",
+    "5e-324",
+    "1e-300",
+    "1e-200",
+    "1e200",
+    "1e19",
+    "1e12",
+    "1e-12",
+    "2000",
+    "1e6",
+    "nan",
+    "inf",
+    "-inf",
+    "18446744073709551615",
+    "9223372036854775807",
+    "4294967295",
+    "65536",
+    "1048577",
+    "3",
+    "0.999999",
+    "-0.999999",
+    "89.9999",
+    "90",
+    "360",
+    "1e15",
 ];
 
 /// Lines a mutation inserts.
@@ -248,9 +280,7 @@ fn replace_number(line: &str, rng: &mut Rng) -> Option<String> {
         if starts && !in_word {
             let start = i;
             i += 1;
-            while i < bytes.len()
-                && (bytes[i].is_ascii_digit() || b".eE+-_".contains(&bytes[i]))
-            {
+            while i < bytes.len() && (bytes[i].is_ascii_digit() || b".eE+-_".contains(&bytes[i])) {
                 i += 1;
             }
             spans.push(start..i);
@@ -262,14 +292,24 @@ fn replace_number(line: &str, rng: &mut Rng) -> Option<String> {
         return None;
     }
     let s = spans[rng.below(spans.len())].clone();
-    Some(format!("{}{}{}", &line[..s.start], rng.pick(NUMBERS), &line[s.end..]))
+    Some(format!(
+        "{}{}{}",
+        &line[..s.start],
+        rng.pick(NUMBERS),
+        &line[s.end..]
+    ))
 }
 
 /// Replaces a quoted string of `line`.
 fn replace_string(line: &str, rng: &mut Rng) -> Option<String> {
     let a = line.find('"')?;
     let b = a + 1 + line[a + 1..].find('"')?;
-    Some(format!("{}{}{}", &line[..a], rng.pick(STRINGS), &line[b + 1..]))
+    Some(format!(
+        "{}{}{}",
+        &line[..a],
+        rng.pick(STRINGS),
+        &line[b + 1..]
+    ))
 }
 
 /// A variant of `text`: one to four mutations, `others` the corpus to splice from.
@@ -314,7 +354,9 @@ pub fn mutate(text: &str, others: &[(String, String)], rng: &mut Rng) -> String 
                 let l = &mut lines[at];
                 if !l.is_empty() && rng.below(3) == 0 {
                     // A stray character: a control, an escape, a quote or a bracket.
-                    let chars = ['\u{1b}', '\u{0}', '"', '[', ']', '=', '\u{feff}', '\u{7f}', '#'];
+                    let chars = [
+                        '\u{1b}', '\u{0}', '"', '[', ']', '=', '\u{feff}', '\u{7f}', '#',
+                    ];
                     let pos = l
                         .char_indices()
                         .nth(rng.below(l.chars().count()))
@@ -349,10 +391,14 @@ fn good_field(f: &str) -> bool {
 /// Whether `message` quotes too much of a file.
 fn echo(message: &str) -> Option<Finding> {
     if message.contains(OUTSIDE) {
-        return Some(Finding::Echo(format!("quotes a file outside the folder: {message}")));
+        return Some(Finding::Echo(format!(
+            "quotes a file outside the folder: {message}"
+        )));
     }
     if message.contains(&SECRET[..48]) {
-        return Some(Finding::Echo(format!("quotes more than an excerpt: {message}")));
+        return Some(Finding::Echo(format!(
+            "quotes more than an excerpt: {message}"
+        )));
     }
     None
 }
@@ -439,7 +485,9 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
         match p.means_or_nan(&|| false) {
             Ok(Some((means, warning))) => {
                 if warning.is_none()
-                    && let Some(m) = means.iter().find(|m| !(m.re.is_finite() && m.im.is_finite()))
+                    && let Some(m) = means
+                        .iter()
+                        .find(|m| !(m.re.is_finite() && m.im.is_finite()))
                 {
                     return Err(Finding::NotFinite(format!("mean {m}")));
                 }

@@ -39,7 +39,10 @@ fn long_run() {
             .and_then(|v| v.parse().ok())
             .unwrap_or(d)
     };
-    let (seconds, seed) = (env("SPECKLE_FUZZ_SECONDS", 1800.0), env("SPECKLE_FUZZ_SEED", 1.0));
+    let (seconds, seed) = (
+        env("SPECKLE_FUZZ_SECONDS", 1800.0),
+        env("SPECKLE_FUZZ_SEED", 1.0),
+    );
     let root = tempfile::tempdir().unwrap();
     let base = sandbox(root.path());
     let t = run(seed as u64, u64::MAX, seconds, &base);

@@ -21,7 +21,9 @@
 //! - a process killed outright (SIGKILL, a crash, power loss) during the few milliseconds of
 //!   the renames may leave a mix for a while, with a hidden `.speckle-*.commit` folder beside
 //!   it; the next commit to that directory, or [`Staged::prepare`] of it, finds the folder
-//!   (its owner no longer holds its lock) and restores the previous files exactly from it.
+//!   (its owner no longer holds its lock) and restores the previous files exactly from it;
+//!   it also removes the `.speckle-*.partial` temporaries that older versions could leave
+//!   (untouched for a minute).
 //!
 //! # The protocol
 //!
@@ -175,10 +177,18 @@ pub fn check_dir(dir: &Path) -> Result<(), OutputError> {
                     reason: "exists and is not a directory".into(),
                 });
             }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => match at.parent() {
-                Some(p) if !p.as_os_str().is_empty() => at = p,
-                _ => return writable(Path::new(".")),
-            },
+            // A missing entry, or one below a file (`file/sub`): look at the parent.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                match at.parent() {
+                    Some(p) if !p.as_os_str().is_empty() => at = p,
+                    _ => return writable(Path::new(".")),
+                }
+            }
             Err(e) => {
                 return Err(OutputError::Directory {
                     path: at.to_path_buf(),
@@ -252,8 +262,22 @@ fn stale(staging: &Path) -> bool {
     }
 }
 
-/// Rolls back and removes every stale staging folder in `dir` (left by a killed commit);
-/// returns how many there were. A missing `dir` has none.
+/// Whether the plain file `path` is a leftover of a killed process: a probe of [`check_dir`]
+/// or a `.partial` temporary of the protocol of speckle 0.1 (one temporary per file, renamed
+/// one at a time), not modified for [`UNLOCKED_GRACE`] (a live writer touches it within
+/// seconds).
+fn stale_leftover(name: &str, path: &Path) -> bool {
+    (name.starts_with(&format!("{PREFIX}probe-")) || name.ends_with(".partial"))
+        && fs::symlink_metadata(path).is_ok_and(|m| {
+            m.is_file()
+                && m.modified()
+                    .is_ok_and(|t| t.elapsed().is_ok_and(|age| age > UNLOCKED_GRACE))
+        })
+}
+
+/// Rolls back and removes every stale staging folder in `dir` (left by a killed commit), and
+/// removes stale leftover files of the protocol (probes, `.speckle-*.partial` temporaries of
+/// older versions); returns how many there were. A missing `dir` has none.
 pub fn recover(dir: &Path) -> Result<usize, OutputError> {
     let entries = match fs::read_dir(dir) {
         Ok(e) => e,
@@ -271,6 +295,9 @@ pub fn recover(dir: &Path) -> Result<usize, OutputError> {
             && stale(&path)
         {
             roll_back(&path).map_err(io_error(&path))?;
+            n += 1;
+        } else if name.starts_with(PREFIX) && stale_leftover(&name, &path) {
+            fs::remove_file(&path).map_err(io_error(&path))?;
             n += 1;
         }
     }
@@ -560,7 +587,9 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let dir = root.path().join("out");
         // Cancelled before writing: not even the directory is created.
-        let e = staged(&dir, &[("x.npy", &[1])]).commit(|| true).unwrap_err();
+        let e = staged(&dir, &[("x.npy", &[1])])
+            .commit(|| true)
+            .unwrap_err();
         assert_eq!(e, OutputError::Cancelled);
         assert!(!dir.exists());
         // Cancelled after staging, before the renames: the staging folder and the directory
@@ -639,6 +668,24 @@ mod tests {
     }
 
     #[test]
+    fn stale_temporaries_of_older_versions_are_removed() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path();
+        let old = fs::File::create(dir.join(".speckle-abc123.partial")).unwrap();
+        let fresh = dir.join(".speckle-def456.partial");
+        fs::write(&fresh, "being written").unwrap();
+        fs::write(dir.join("keep.partial"), "not ours").unwrap();
+        let past = std::time::SystemTime::now() - 2 * UNLOCKED_GRACE;
+        old.set_modified(past).unwrap();
+        drop(old);
+        assert_eq!(recover(dir).unwrap(), 1);
+        assert_eq!(
+            listing(dir),
+            vec![".speckle-def456.partial", "keep.partial"]
+        );
+    }
+
+    #[test]
     fn a_live_commit_is_not_recovered() {
         let root = tempfile::tempdir().unwrap();
         let staging = Staging::create(root.path()).unwrap();
@@ -672,7 +719,10 @@ mod tests {
         let e = check_dir(&file.join("sub")).unwrap_err();
         assert!(e.to_string().contains("not a directory"), "{e}");
         let long = staged(root.path(), &[(&"y".repeat(300), b"1")]);
-        assert!(matches!(long.commit(|| false), Err(OutputError::Name { .. })));
+        assert!(matches!(
+            long.commit(|| false),
+            Err(OutputError::Name { .. })
+        ));
         assert!(listing(root.path()) == vec!["f"]);
     }
 }

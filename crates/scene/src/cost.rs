@@ -368,8 +368,7 @@ impl Problem {
                 // J x J arrays.
                 let square = 16.0 * j * j;
                 let bytes = square * (12.0 + 4.0 * threads) + 5.0 * square;
-                let per_path =
-                    vertices * (VERTEX_S + per_vertex_connect + 0.5 * j * j * MAC_S);
+                let per_path = vertices * (VERTEX_S + per_vertex_connect + 0.5 * j * j * MAC_S);
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::Single => {
@@ -483,11 +482,11 @@ mod tests {
         let m = guard(&e, Some(1e9), false).unwrap_err().to_string();
         assert!(m.starts_with("sensors: this needs about 2 GiB"), "{m}");
         assert!(guard(&e, Some(1e9), true).is_ok());
-        let slow = Estimate {
-            seconds: 1e7,
-            ..e
-        };
+        let slow = Estimate { seconds: 1e7, ..e };
         let m = guard(&slow, None, false).unwrap_err().to_string();
-        assert!(m.starts_with("render.paths: this would take roughly 116 days"), "{m}");
+        assert!(
+            m.starts_with("render.paths: this would take roughly 116 days"),
+            "{m}"
+        );
     }
 }

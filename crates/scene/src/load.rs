@@ -6,9 +6,9 @@
 
 use crate::SceneError;
 use crate::problem::Problem;
+use crate::safe::{Access, MAX_SCENE_BYTES};
 use crate::schema::{Overrides, PhaseSpec, SceneFile, SensorSpec, SourceSpec};
 use serde::de::DeserializeOwned;
-use crate::safe::{Access, MAX_SCENE_BYTES};
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
@@ -119,7 +119,10 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
             && let Some((l, key)) = deepest_key(text)
         {
             (line, column) = (Some(l), Some(1));
-            report = format!("{key}: {} (a key nested too deeply) at line {l}", e.message());
+            report = format!(
+                "{key}: {} (a key nested too deeply) at line {l}",
+                e.message()
+            );
             field = Some(key);
         }
         LoadError::Parse {
@@ -315,8 +318,7 @@ pub fn read_input(path: &Path, what: &str) -> Result<(String, String), LoadError
     if bytes.len() as u64 > MAX_SCENE_BYTES {
         return Err(fail(format!("it has more than {MAX_SCENE_BYTES} bytes")));
     }
-    let text = String::from_utf8(bytes)
-        .map_err(|e| fail(format!("it is not UTF-8 text ({e})")))?;
+    let text = String::from_utf8(bytes).map_err(|e| fail(format!("it is not UTF-8 text ({e})")))?;
     let text = crate::safe::strip_bom(&text).to_string();
     let stem = path
         .file_stem()

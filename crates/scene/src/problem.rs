@@ -88,9 +88,7 @@ fn check_extents(
                     if far(*origin) {
                         "origin"
                     } else if far(*step_x)
-                        || info.ix.is_some_and(|ix| {
-                            far(step_x.map(|c| c * ix as f64))
-                        })
+                        || info.ix.is_some_and(|ix| far(step_x.map(|c| c * ix as f64)))
                     {
                         "step_x"
                     } else {

@@ -350,7 +350,9 @@ mod tests {
         assert_eq!(read_text("f", &f, "a.txt", 100).unwrap(), "hello");
         let e = read_regular("f", &f, "a.txt", 3).unwrap_err().to_string();
         assert!(e.contains("more than the limit of 3"), "{e}");
-        let e = read_regular("f", dir.path(), "d", 3).unwrap_err().to_string();
+        let e = read_regular("f", dir.path(), "d", 3)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("a directory"), "{e}");
         #[cfg(unix)]
         {
@@ -367,7 +369,10 @@ mod tests {
         let long = "x".repeat(100);
         assert_eq!(excerpt(&long), format!("{}...", "x".repeat(EXCERPT_CHARS)));
         assert_eq!(excerpt("a\u{1b}[2Jb"), "a\\u{1b}[2Jb");
-        assert_eq!(printable("line\n\u{1b}]0;t\u{7}x"), "line\n\\u{1b}]0;t\\u{7}x");
+        assert_eq!(
+            printable("line\n\u{1b}]0;t\u{7}x"),
+            "line\n\\u{1b}]0;t\\u{7}x"
+        );
         assert_eq!(printable("\u{feff}mu"), "\\u{feff}mu");
     }
 }

@@ -231,7 +231,11 @@ fn the_summary_and_the_sidecar_describe_the_scene() {
     let names: Vec<&str> = tables.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(
         names,
-        ["t.check.pairs.npy", "t.check.sources.npy", "t.check.sensors.npy"]
+        [
+            "t.check.pairs.npy",
+            "t.check.sources.npy",
+            "t.check.sensors.npy"
+        ]
     );
     let sources = speckle_scene::npy::decode_real(&tables[1].1).unwrap();
     assert_eq!(sources.shape, vec![2, 7]);

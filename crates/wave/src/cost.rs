@@ -1,8 +1,8 @@
 //! A rough estimate of what a wave render will cost, to tell a user before it starts.
 
 use crate::{WaveError, WaveScene, expected_scatterers};
-use speckle_scene::cost::Estimate;
 use speckle_medium::{Dimension, Medium};
+use speckle_scene::cost::Estimate;
 
 /// Rough single-thread speeds of the solver (measured on a 2-core x86-64 machine with AVX-512;
 /// the assembly dominates up to `N` of a few thousand): real flops per second of the dense

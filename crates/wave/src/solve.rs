@@ -225,7 +225,13 @@ pub(crate) fn solve_checked(
                 return Err(WaveError::Cancelled);
             }
             let one = Complex64::new(1.0, 0.0);
-            a.resize_with(n, j + 1, |r, c| if r == c { one } else { Complex64::new(0.0, 0.0) });
+            a.resize_with(n, j + 1, |r, c| {
+                if r == c {
+                    one
+                } else {
+                    Complex64::new(0.0, 0.0)
+                }
+            });
         }
         for j in 0..n {
             // Up to N Green's functions per column (2 ms at N = 19 000): asked per column.

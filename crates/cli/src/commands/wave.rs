@@ -22,7 +22,6 @@ pub struct Args {
     no_png: bool,
 }
 
-
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.common.load(Overrides {
         configurations: a.configurations,
@@ -43,7 +42,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (_, field_png) = p.pngs(Command::Fields, rr).map_err(in_scene(&p))?;
     let (jf, rf) = (j as f64, rr as f64);
     let staged_bytes = 16.0 * (rf * jf + 2.0 * jf * jf + 2.0 * jf) + cov_png + field_png;
-    let mut staged = plan(&p, Ok(cost.estimate(staged_bytes)), RunOptions { quiet: true, ..run })?;
+    let mut staged = plan(
+        &p,
+        Ok(cost.estimate(staged_bytes)),
+        RunOptions { quiet: true, ..run },
+    )?;
     if !run.quiet {
         say!(
             "{}: wave solver: {rr} configurations of about {:.1} scatterers (N = sigma_s |V| / \

@@ -381,7 +381,11 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 }
                 // The farthest points must be finite (a step times a count may overflow).
                 let (last_x, last_y) = (sx * (*nx - 1) as f64, sy * (*ny - 1) as f64);
-                for (key, v) in [("step_x", last_x), ("step_y", last_y), ("origin", o + last_x + last_y)] {
+                for (key, v) in [
+                    ("step_x", last_x),
+                    ("step_y", last_y),
+                    ("origin", o + last_x + last_y),
+                ] {
                     if !v.is_finite() {
                         return Err(invalid(
                             f(key),

@@ -183,7 +183,10 @@ fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String>
     // Tables are normalised, so their scale is free: bring the largest modulus near 1 by a
     // power of two (exact, so the normalised table is bitwise the same), so that |s|^2 of
     // values near the limits of f64 (1e200, 1e-200) neither overflows nor underflows.
-    let largest = s.iter().map(|c| c.re.abs().max(c.im.abs())).fold(0.0, f64::max);
+    let largest = s
+        .iter()
+        .map(|c| c.re.abs().max(c.im.abs()))
+        .fold(0.0, f64::max);
     if largest > 0.0 && !(1e-100..=1e100).contains(&largest) {
         let scale = (-largest.log2().round()).exp2();
         for c in &mut s {
