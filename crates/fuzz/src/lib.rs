@@ -121,7 +121,7 @@ impl Rng {
     }
 
     /// The next 64 bits.
-    pub fn next(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -131,7 +131,7 @@ impl Rng {
 
     /// Uniform in `0..n` (`n > 0`).
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
+        (self.next_u64() % n as u64) as usize
     }
 
     /// One of `items`.
@@ -323,7 +323,7 @@ pub fn mutate(text: &str, others: &[(String, String)], rng: &mut Rng) -> String 
         }
         let at = rng.below(lines.len());
         match rng.below(9) {
-            0 | 1 | 2 => {
+            0..=2 => {
                 if let Some(l) = replace_number(&lines[at], rng) {
                     lines[at] = l;
                 }

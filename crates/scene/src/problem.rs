@@ -76,7 +76,7 @@ fn check_extents(
 ) -> Result<(), SceneError> {
     use crate::schema::SensorSpec;
     let extent = MAX_WAVELENGTHS * wavelength;
-    let far = |p: [f64; 3]| p.iter().any(|c| !(c.abs() <= extent));
+    let far = |p: [f64; 3]| p.iter().any(|c| !c.is_finite() || c.abs() > extent);
     for (what, infos) in [("sources", sources), ("sensors", sensors)] {
         for info in infos {
             let Some(p) = info.position.filter(|p| far(*p)) else {
