@@ -350,6 +350,11 @@ fn overflowing_values_exit_2_naming_the_field() {
             format!("{base}[[sources]]\ntype = \"point\"\nposition = [0.0, 0.0, -1e308]\n"),
             "sources[1].position: ",
         ),
+        // Found by the fuzzer: a subnormal component of a direction gave NaN intensities.
+        (
+            format!("{base}[[sensors]]\ntype = \"far\"\ndirection = [0.0, 5e-324, 1.0]\n"),
+            "sensors[1].direction[1]: ",
+        ),
         (
             format!(
                 "{base}[[sensors]]\ntype = \"point_grid\"\norigin = [0.0, 0.0, 5.0]\n\

@@ -85,11 +85,27 @@ pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     Ok(DVec3::from_array(v))
 }
 
-/// A finite non-zero vector, normalised.
+/// The smallest non-zero component of a direction, relative to its length.
+pub const MIN_COMPONENT: f64 = 1e-100;
+
+/// A finite non-zero vector, normalised; a non-zero component below [`MIN_COMPONENT`] of its
+/// length is refused.
 pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     let d = vec3(field, v)?;
     let len = d.length();
     if len > 0.0 && len.is_finite() {
+        // A component that is not zero but negligible beside the others (5e-324 beside 1) gives
+        // differences of directions whose squares underflow, and NaN results: refused, not
+        // rounded to 0 behind the user's back.
+        if let Some(i) = (0..3).find(|&i| v[i] != 0.0 && (v[i] / len).abs() < MIN_COMPONENT) {
+            return Err(invalid(
+                format!("{field}[{i}]"),
+                format!(
+                    "{:e} is not zero but negligible beside the vector's length {len:e} (below                      {MIN_COMPONENT:e} of it), so products of it underflow; write 0",
+                    v[i]
+                ),
+            ));
+        }
         Ok(d / len)
     } else {
         Err(invalid(
