@@ -2,10 +2,12 @@
 //! anything else 1.
 
 use speckle::estimators::EstimatorError;
+use speckle::scene::safe::printable;
 use speckle::scene::tools::fit::FitError;
 use speckle::scene::{LoadError, SceneError};
 use speckle::studies::StudyError;
 use speckle::wave::WaveError;
+use speckle_output::OutputError;
 use std::process::ExitCode;
 
 /// Bad user input (exit code 2). The message names the offending field.
@@ -58,6 +60,18 @@ pub fn wave(e: WaveError, origin: &str) -> anyhow::Error {
     }
 }
 
+/// An output error: cancelled (130), a directory or name that cannot take the files (bad
+/// input, named `output.dir`), or a failed write (1; the previous files are unchanged).
+pub fn output(e: OutputError) -> anyhow::Error {
+    match e {
+        OutputError::Cancelled => Cancelled.into(),
+        e @ (OutputError::Directory { .. } | OutputError::Name { .. }) => {
+            InputError(format!("output.dir: {e}")).into()
+        }
+        e @ OutputError::Io { .. } => anyhow::Error::new(e),
+    }
+}
+
 /// A study's error.
 pub fn study(e: StudyError) -> anyhow::Error {
     match e {
@@ -85,16 +99,16 @@ pub fn fit(e: FitError) -> anyhow::Error {
     }
 }
 
-/// Prints `e` and returns its exit code.
+/// Prints `e` (never a terminal escape sequence: see `printable`) and returns its exit code.
 pub fn report(e: &anyhow::Error) -> ExitCode {
     if e.is::<Cancelled>() {
-        tell!("speckle: {e}");
+        tell!("speckle: {}", printable(&e.to_string()));
         ExitCode::from(130)
     } else if e.is::<InputError>() || e.is::<LoadError>() || e.is::<SceneError>() {
-        tell!("error: {e}");
+        tell!("error: {}", printable(&e.to_string()));
         ExitCode::from(2)
     } else {
-        tell!("error: {e:#}");
+        tell!("error: {}", printable(&format!("{e:#}")));
         ExitCode::from(1)
     }
 }

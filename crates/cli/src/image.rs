@@ -71,15 +71,6 @@ impl Gray {
     }
 }
 
-/// The upscaling factor: `requested`, or the smallest integer that makes the larger side at least
-/// 256 pixels (at most 16).
-pub fn scale_for(width: usize, height: usize, requested: Option<u32>) -> usize {
-    match requested {
-        Some(s) => s as usize,
-        None => 256usize.div_ceil(width.max(height).max(1)).clamp(1, 16),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -93,9 +84,5 @@ mod tests {
         assert_eq!(&big.pixels[..6], &[128, 128, 128, 255, 255, 255]);
         let png = big.encode_png().unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-        assert_eq!(scale_for(8, 8, None), 16);
-        assert_eq!(scale_for(100, 30, None), 3);
-        assert_eq!(scale_for(1000, 30, None), 1);
-        assert_eq!(scale_for(8, 8, Some(2)), 2);
     }
 }

@@ -9,8 +9,9 @@
 //! Design decision: this binary owns argument parsing, progress and cancellation, and output
 //! files; it checks no value and computes no physics (the libraries do, and name the offending
 //! field). It maps their errors to exit codes: 0 success, 1 runtime failure (for example I/O),
-//! 2 bad input, 130 interrupted. A render interrupted with ctrl-c writes nothing, because
-//! outputs are staged in memory and renamed into place only after the whole render succeeded.
+//! 2 bad input, 130 interrupted. Before any work it estimates the cost and checks the output
+//! directory; a render's files appear all together or not at all (`speckle_output`), so an
+//! interrupted or failed render leaves the previous files as they were.
 
 #![forbid(unsafe_code)]
 
@@ -33,7 +34,6 @@ macro_rules! tell {
 mod commands;
 mod error;
 mod image;
-mod output;
 mod progress;
 
 use clap::{Parser, Subcommand};

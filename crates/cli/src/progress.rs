@@ -14,12 +14,16 @@ pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::Relaxed)
 }
 
-/// Installs the ctrl-c handler: the first ctrl-c asks the render to stop (it then exits with code
-/// 130 and writes nothing); a second one exits at once.
-pub fn install_interrupt_handler() {
-    let result = ctrlc::set_handler(|| {
-        if INTERRUPTED.swap(true, Ordering::SeqCst) {
-            tell!("\nspeckle: interrupted again, exiting now");
+/// Installs the handler of ctrl-c (and of SIGTERM and SIGHUP). In a `cooperative` command
+/// (one whose work polls [`interrupted`]) the first signal asks the work to stop: it then
+/// exits with code 130 within a second and writes nothing. Otherwise, and at the second
+/// signal, the process exits at once with code 130, after rolling back any output commit in
+/// progress and removing its temporaries (`speckle_output::abandon`).
+pub fn install_interrupt_handler(cooperative: bool) {
+    let result = ctrlc::set_handler(move || {
+        if !cooperative || INTERRUPTED.swap(true, Ordering::SeqCst) {
+            speckle_output::abandon();
+            tell!("\nspeckle: interrupted; no output was written");
             std::process::exit(130);
         }
         tell!("\nspeckle: interrupted, stopping the render (press ctrl-c again to exit at once)");

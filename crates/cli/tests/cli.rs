@@ -710,6 +710,19 @@ fn load_npy_as(path: &Path, descr: &str) -> (Vec<usize>, Vec<f64>) {
     (shape, data)
 }
 
+/// The shape and the numbers of an int64 `.npy` file.
+fn load_i8(path: &Path) -> (Vec<usize>, Vec<i64>) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (descr, fortran, shape, offset) = npy_header(&bytes);
+    assert_eq!(descr, "<i8", "{}", path.display());
+    assert!(!fortran);
+    let data = bytes[offset..]
+        .chunks_exact(8)
+        .map(|c| i64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    (shape, data)
+}
+
 fn load_npy(path: &Path) -> (Vec<usize>, Vec<(f64, f64)>) {
     let (shape, data) = load_npy_as(path, "<c16");
     (shape, data.chunks_exact(2).map(|c| (c[0], c[1])).collect())
@@ -749,11 +762,16 @@ fn covariance_writes_npy_and_json() {
     assert_eq!(meta["render"]["paths"], 4000);
     assert_eq!(meta["render"]["seed"], 5);
     assert_eq!(meta["render"]["coherence"], "forward_and_reversed");
-    assert_eq!(meta["pairs"].as_array().unwrap().len(), 12);
-    assert_eq!(meta["pairs"][7]["source"], 1);
-    assert_eq!(meta["pairs"][7]["sensor"], 1);
-    assert_eq!(meta["sources"].as_array().unwrap().len(), 2);
-    assert_eq!(meta["sensors"].as_array().unwrap().len(), 6);
+    // The pairs and endpoints are tables beside the sidecar.
+    assert_eq!(meta["pairs"]["count"], 12);
+    assert_eq!(meta["pairs"]["file"], "tiny.cov.pairs.npy");
+    let (shape, pairs) = load_i8(&res.join("tiny.cov.pairs.npy"));
+    assert_eq!(shape, vec![12, 2]);
+    assert_eq!(&pairs[14..16], &[1, 1], "pair 7: source 1, sensor 1");
+    assert_eq!(meta["sources"]["count"], 2);
+    assert_eq!(meta["sensors"]["count"], 6);
+    let (shape, _) = load_npy_as(&res.join("tiny.cov.sensors.npy"), "<f8");
+    assert_eq!(shape, vec![6, 7]);
     assert_eq!(meta["scene"]["medium"]["mean_free_path"], 4.0);
     assert_eq!(meta["derived"]["pairs"], 12);
     assert!(meta["summary"]["mean_diagonal_total"].as_f64().unwrap() > 0.0);
@@ -1013,28 +1031,29 @@ fn flatland_intensity_writes_float64_arrays_and_far_arc_angles() {
         meta["scene"]["sensors"][0]["axis"],
         serde_json::json!([0.0, 0.0, 1.0])
     );
-    let tilted = &meta["sources"][1]["direction"];
+    // Rows of the endpoint tables: entry, kind, x, y, z, p, q.
+    let (shape, sources) = load_npy_as(&res.join("flat.intensity.sources.npy"), "<f8");
+    assert_eq!(shape, vec![2, 7]);
+    let tilted = &sources[7 + 2..7 + 5];
     let a = 10f64.to_radians();
-    assert!(
-        (tilted[0].as_f64().unwrap() + a.sin()).abs() < 1e-12,
-        "{tilted}"
-    );
+    assert!((tilted[0] + a.sin()).abs() < 1e-12, "{tilted:?}");
     // The arc: +y rotated counter-clockwise by 90, 135, ..., 270 degrees, then the point.
-    let sensors = meta["sensors"].as_array().unwrap();
-    assert_eq!(sensors.len(), 6);
-    for (k, s) in sensors[..5].iter().enumerate() {
+    let (shape, sensors) = load_npy_as(&res.join("flat.intensity.sensors.npy"), "<f8");
+    assert_eq!(shape, vec![6, 7]);
+    for k in 0..5 {
+        let s = &sensors[7 * k..7 * k + 7];
         let deg = 90.0 + 45.0 * k as f64;
-        assert_eq!(s["angle_deg"], deg, "{s}");
-        assert_eq!(s["k"], k);
-        let d: Vec<f64> = serde_json::from_value(s["direction"].clone()).unwrap();
+        assert_eq!(s[1], 2.0, "far field: {s:?}");
+        assert_eq!(s[5], deg, "{s:?}");
+        assert_eq!(s[6], k as f64);
         let (sin, cos) = deg.to_radians().sin_cos();
         assert!(
-            (d[0] + sin).abs() < 1e-12 && (d[1] - cos).abs() < 1e-12,
-            "{s}"
+            (s[2] + sin).abs() < 1e-12 && (s[3] - cos).abs() < 1e-12,
+            "{s:?}"
         );
-        assert_eq!(d[2], 0.0);
+        assert_eq!(s[4], 0.0);
     }
-    assert_eq!(sensors[5]["type"], "point");
+    assert_eq!(sensors[7 * 5 + 1], 1.0, "a point sensor");
 
     // The same seed gives the covariance's diagonal exactly.
     let o = speckle(

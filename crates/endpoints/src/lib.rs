@@ -47,7 +47,7 @@ mod point;
 
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
 pub use kernels::{Endpoints, Legs};
-pub use mean::mean_field;
+pub use mean::{mean_field, mean_field_cancellable};
 
 use glam::DVec3;
 use num_complex::Complex64;

@@ -86,7 +86,20 @@ pub fn mean_field<M: Medium, P: PhaseFunction>(
     src: Source,
     sen: Sensor,
 ) -> Result<Complex64, EndpointError> {
-    Ok(match (src, sen) {
+    Ok(mean_field_cancellable(m, phases, k, src, sen, &|| false)?.expect("never cancelled"))
+}
+
+/// [`mean_field`], asking `cancelled` between the rows of its quadrature (a few hundred
+/// microseconds apart); `None` once it says so.
+pub fn mean_field_cancellable<M: Medium, P: PhaseFunction>(
+    m: &M,
+    phases: &[P],
+    k: f64,
+    src: Source,
+    sen: Sensor,
+    cancelled: &dyn Fn() -> bool,
+) -> Result<Option<Complex64>, EndpointError> {
+    Ok(Some(match (src, sen) {
         // A point endpoint on either side: the attenuated direct path (Eq. 20), which is the
         // other endpoint's leg evaluated at the point.
         (Source::Point { position: p }, Sensor::Point { position: q }) => {
@@ -112,9 +125,13 @@ pub fn mean_field<M: Medium, P: PhaseFunction>(
                 }
             };
             let amp = forward * relative_amplitude(m, phases, i, v);
-            amp * box_integral(m.bounds(), k, sigma_t, i, v)
+            let Some(integral) = box_integral_refined(m.bounds(), k, sigma_t, i, v, 1, cancelled)
+            else {
+                return Ok(None);
+            };
+            amp * integral
         }
-    })
+    }))
 }
 
 /// `s(i . v) / s(1)`, the amplitude relative to the forward one. With several particle types it
@@ -148,8 +165,9 @@ const GL4: [(f64, f64); 4] = [
 /// part of the box whose sensor leg exits through a face the incident wave does not enter,
 /// `tau_in tau_out` where it exits through a face the incident wave enters. See
 /// [`box_integral_refined`].
+#[cfg(test)]
 fn box_integral(b: &speckle_medium::Aabb, k: f64, sigma_t: f64, i: DVec3, v: DVec3) -> Complex64 {
-    box_integral_refined(b, k, sigma_t, i, v, 1)
+    box_integral_refined(b, k, sigma_t, i, v, 1, &|| false).expect("never cancelled")
 }
 
 /// [`box_integral`] with `refine` times the panels per axis (tests estimate the quadrature error
@@ -164,7 +182,8 @@ fn box_integral_refined(
     i: DVec3,
     v: DVec3,
     refine: usize,
-) -> Complex64 {
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Complex64> {
     let q = i - v;
     // alpha = sigma_t / 2 + i k q.v: int_0^T e^{-alpha t} dt = (1 - e^{-alpha T}) / alpha.
     let alpha = Complex64::new(0.5 * sigma_t, k * q.dot(v));
@@ -204,6 +223,9 @@ fn box_integral_refined(
         let (r1, r2) = (rule(a1), rule(a2));
         let mut face = Complex64::new(0.0, 0.0);
         for &(c1, w1) in &r1 {
+            if cancelled() {
+                return None;
+            }
             for &(c2, w2) in &r2 {
                 let mut y = DVec3::ZERO;
                 y[axis] = plane;
@@ -220,7 +242,7 @@ fn box_integral_refined(
         }
         total += face * vn.abs();
     }
-    total
+    Some(total)
 }
 
 /// `int_0^T e^{-alpha t} e^{-sigma_t d_in(y - t v) / 2} dt`, `alpha = sigma_t / 2 + i k q.v`,
@@ -423,7 +445,7 @@ mod tests {
     /// kinks of the integrand, but erratically (the change from one halving alone can be half
     /// the error), hence two.
     fn quadrature_error(b: &Aabb, k: f64, st: f64, i: DVec3, v: DVec3) -> f64 {
-        let q = |r| box_integral_refined(b, k, st, i, v, r);
+        let q = |r| box_integral_refined(b, k, st, i, v, r, &|| false).unwrap();
         let (q1, q2, q4) = (q(1), q(2), q(4));
         (q1 - q2).norm() + (q2 - q4).norm()
     }

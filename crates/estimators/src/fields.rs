@@ -171,7 +171,9 @@ fn render<M: Medium, P: PhaseFunction>(
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let j = scene.len();
     let mean = if options.add_mean {
-        scene.means()?
+        scene
+            .means_cancellable(&|| progress.cancelled())?
+            .ok_or(EstimatorError::Cancelled)?
     } else {
         vec![Complex64::new(0.0, 0.0); j]
     };

@@ -29,10 +29,12 @@ use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
 
 pub mod build;
+pub mod cost;
 pub mod examples;
 pub mod load;
 pub mod npy;
 pub mod problem;
+pub mod safe;
 pub mod schema;
 pub mod tools;
 pub mod validate;
@@ -277,6 +279,37 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         P: Sync,
     {
         self.pairs.par_iter().map(|&p| self.mean(p)).collect()
+    }
+
+    /// [`Scene::means`], asking `cancelled` before each pair and inside the quadrature of each
+    /// (a few hundred microseconds apart); `None` once it says so.
+    pub fn means_cancellable(
+        &self,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<Vec<Complex64>>, SceneError>
+    where
+        M: Sync,
+        P: Sync,
+    {
+        let k = self.wavenumber();
+        let each: Vec<Option<Complex64>> = self
+            .pairs
+            .par_iter()
+            .map(|&p| {
+                if cancelled() {
+                    return Ok(None);
+                }
+                Ok(speckle_endpoints::mean_field_cancellable(
+                    &self.medium,
+                    &self.phases,
+                    k,
+                    self.sources[p.source],
+                    self.sensors[p.sensor],
+                    cancelled,
+                )?)
+            })
+            .collect::<Result<_, SceneError>>()?;
+        Ok(each.into_iter().collect())
     }
 
     /// The reciprocal scene: every pair `(i, v)` becomes `(-v, -i)` (sources and sensors swap,

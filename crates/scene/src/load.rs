@@ -6,8 +6,10 @@
 
 use crate::SceneError;
 use crate::problem::Problem;
+use crate::safe::{Access, MAX_SCENE_BYTES};
 use crate::schema::{Overrides, PhaseSpec, SceneFile, SensorSpec, SourceSpec};
 use serde::de::DeserializeOwned;
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 /// Errors of loading an input document. Every value error is a [`SceneError`], which names the
@@ -109,17 +111,30 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
         None => (None, None),
     };
     let de = toml::Deserializer::parse(text).map_err(|e| {
-        let (line, column) = position(e.span());
+        let (mut line, mut column) = position(e.span());
+        let mut field = None;
+        let mut report = e.to_string();
+        // A key of too many dotted parts is reported with no position: find it.
+        if line.is_none()
+            && let Some((l, key)) = deepest_key(text)
+        {
+            (line, column) = (Some(l), Some(1));
+            report = format!(
+                "{key}: {} (a key nested too deeply) at line {l}",
+                e.message()
+            );
+            field = Some(key);
+        }
         LoadError::Parse {
-            field: None,
+            field,
             message: e.message().to_string(),
             line,
             column,
-            report: e.to_string().trim_end().to_string(),
+            report: clip_report(&report),
         }
     })?;
     serde_path_to_error::deserialize(de).map_err(|e| {
-        let message = e.inner().message().to_string();
+        let mut message = e.inner().message().to_string();
         let (line, column) = position(e.inner().span());
         let key = keys
             .prefixes
@@ -138,6 +153,29 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
                 format!("{path}.{key}")
             };
         }
+        // A date or time where a table or a number belongs reaches serde as a table with this
+        // private key.
+        const DATETIME: &str = "$__toml_private_datetime";
+        if path.contains(DATETIME) || message.contains(DATETIME) {
+            path = path
+                .replace(&format!(".{DATETIME}"), "")
+                .replace(DATETIME, "");
+            if path.is_empty() {
+                path = ".".into();
+            }
+            message = "a TOML date or time is not valid here".into();
+            let at = match (line, column) {
+                (Some(l), Some(c)) => format!(" (line {l}, column {c})"),
+                _ => String::new(),
+            };
+            return LoadError::Parse {
+                field: (path != ".").then(|| path.clone()),
+                report: format!("{path}: {message}{at}"),
+                message,
+                line,
+                column,
+            };
+        }
         let detail = e.into_inner().to_string();
         if path == "." || path.is_empty() {
             LoadError::Parse {
@@ -145,13 +183,13 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
                 message,
                 line,
                 column,
-                report: detail.trim_end().to_string(),
+                report: clip_report(detail.trim_end()),
             }
         } else {
             // `detail` is the location (line, column, excerpt) followed by `message`.
             let location = detail.trim_end();
             let location = location.strip_suffix(message.as_str()).unwrap_or(location);
-            let report = format!("{path}: {message}\n{}", location.trim_end());
+            let report = clip_report(&format!("{path}: {message}\n{}", location.trim_end()));
             LoadError::Parse {
                 field: Some(path),
                 message,
@@ -161,6 +199,46 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, keys: KeyFinder<'_>) -> Resul
             }
         }
     })
+}
+
+/// A report quoting the document, made safe to print: each line at most 160 characters, control
+/// characters and terminal escapes written as escapes ([`crate::safe::printable`]).
+fn clip_report(report: &str) -> String {
+    const WIDTH: usize = 160;
+    let lines: Vec<String> = report
+        .trim_end()
+        .lines()
+        .map(|l| {
+            if l.chars().count() > WIDTH {
+                format!("{}...", l.chars().take(WIDTH).collect::<String>())
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    crate::safe::printable(&lines.join("\n"))
+}
+
+/// The 1-based line and a short excerpt of the key with the most dotted parts (in a
+/// `key = value` line or a `[table]` header): where a "recursion limit" error lies.
+fn deepest_key(text: &str) -> Option<(usize, String)> {
+    text.lines()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let l = l.trim_start();
+            let key = if l.starts_with('[') {
+                l.trim_start_matches('[').split(']').next()?
+            } else {
+                l.split('=').next()?
+            };
+            let dots = key.matches('.').count();
+            (dots > 0).then(|| (dots, i + 1, key.trim()))
+        })
+        .max_by_key(|&(dots, line, _)| (dots, std::cmp::Reverse(line)))
+        .map(|(_, line, key)| {
+            let first = key.split('.').next().unwrap_or(key).trim();
+            (line, crate::safe::excerpt(first))
+        })
 }
 
 /// Reads a scene document. Unknown keys are named; a type error inside a tagged table is
@@ -219,14 +297,29 @@ fn tagged_culprit(text: &str, path: &serde_path_to_error::Path, message: &str) -
         .cloned()
 }
 
-/// Reads an input file (`what`: "scene", "study") and returns its text and its stem (the
-/// default output name; `what` when the path has none).
+/// Reads an input file (`what`: "scene", "study") of at most [`MAX_SCENE_BYTES`] and returns
+/// its text (without a byte-order mark) and its stem (the default output name; `what` when the
+/// path has none). The path comes from the command line, so it may be a pipe
+/// (`speckle check <(speckle example)`), but never more than the limit is read (`/dev/zero`).
 pub fn read_input(path: &Path, what: &str) -> Result<(String, String), LoadError> {
-    let text = std::fs::read_to_string(path).map_err(|e| LoadError::Read {
+    let fail = |reason: String| LoadError::Read {
         what: what.to_string(),
         path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
+        reason,
+    };
+    let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(fail("it is a directory".into()));
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_SCENE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| fail(e.to_string()))?;
+    if bytes.len() as u64 > MAX_SCENE_BYTES {
+        return Err(fail(format!("it has more than {MAX_SCENE_BYTES} bytes")));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| fail(format!("it is not UTF-8 text ({e})")))?;
+    let text = crate::safe::strip_bom(&text).to_string();
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -253,7 +346,11 @@ pub fn load_str(
 ) -> Result<Problem, LoadError> {
     let mut file = parse_scene(text).map_err(|e| e.in_document(origin))?;
     overrides.apply(&mut file);
-    Problem::build(file, origin, base, default_name)
+    let access = Access {
+        inputs_outside: overrides.allow_outside,
+        output_outside: overrides.allow_outside || overrides.out.is_some(),
+    };
+    Problem::build_with(file, origin, base, default_name, access)
         .map_err(|e| LoadError::from(e).in_document(origin))
 }
 

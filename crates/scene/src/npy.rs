@@ -53,6 +53,17 @@ pub fn encode_f8(shape: &[usize], data: &[f64]) -> Vec<u8> {
     out
 }
 
+/// Encodes a C-order int64 array of the given shape.
+///
+/// Panics if `data.len()` is not the product of `shape` (a programming error, not user input).
+pub fn encode_i8(shape: &[usize], data: &[i64]) -> Vec<u8> {
+    let mut out = header("<i8", shape, data.len(), 8);
+    for x in data {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out
+}
+
 /// The magic string and header of an array of `len` elements of `item` bytes with dtype
 /// `descr`, with room reserved for the data.
 fn header(descr: &str, shape: &[usize], len: usize, item: usize) -> Vec<u8> {

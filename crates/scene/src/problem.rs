@@ -8,6 +8,8 @@ use crate::build::medium::{MediumFacts, build_medium};
 use crate::build::render::{OutputSettings, RenderSettings, coherence_name};
 use crate::build::{MAX_ENDPOINTS, medium::BuiltMedium};
 use crate::load::LoadError;
+use crate::npy;
+use crate::safe::{Access, Files};
 use crate::schema::{PhaseSpec, SceneFile};
 use crate::validate::{self, invalid, positive};
 use crate::{AnyScene, Scene};
@@ -22,6 +24,144 @@ use std::path::Path;
 
 /// Bytes of covariance accumulators above which a `J x J` render is refused.
 pub const MAX_COVARIANCE_BYTES: f64 = 8.0 * (1u64 << 30) as f64;
+
+/// Lengths (sizes, coordinates) may be at most this many wavelengths: the phase `k r` of a
+/// farther point has no significant digit left below a milliradian, and products of lengths
+/// stay far from overflow.
+pub const MAX_WAVELENGTHS: f64 = 1e12;
+
+/// The mean free path may be no shorter than this many wavelengths (a coefficient `sigma_t`
+/// of at most `1e12` per wavelength).
+pub const MIN_FREE_PATH_WAVELENGTHS: f64 = 1e-12;
+
+/// The wavelength (in the scene's unit, in vacuum and in the host) must be in this range, so
+/// that its powers (areas, volumes, densities) are ordinary numbers.
+pub const WAVELENGTH_RANGE: (f64, f64) = (1e-30, 1e30);
+
+/// `v` if it is in [`WAVELENGTH_RANGE`].
+fn in_range(field: &str, v: f64) -> Result<f64, SceneError> {
+    let (lo, hi) = WAVELENGTH_RANGE;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(invalid(
+            field,
+            format!(
+                "gives a wavelength of {v:e}, outside [{lo:e}, {hi:e}]; choose a length unit in \
+                 which the wavelength is an ordinary number"
+            ),
+        ))
+    }
+}
+
+/// The error of a length `v` farther than [`MAX_WAVELENGTHS`] wavelengths.
+fn too_far(field: String, v: f64, wavelength: f64) -> SceneError {
+    invalid(
+        field,
+        format!(
+            "{v:e} is more than {MAX_WAVELENGTHS:e} wavelengths ({:e}) from the origin; the \
+             phases and products of such lengths are meaningless in double precision",
+            MAX_WAVELENGTHS * wavelength
+        ),
+    )
+}
+
+/// Refuses point endpoints (and grid points) farther than [`MAX_WAVELENGTHS`] wavelengths,
+/// naming the field of their entry.
+fn check_extents(
+    file: &SceneFile,
+    sources: &[EndpointInfo],
+    sensors: &[EndpointInfo],
+    wavelength: f64,
+) -> Result<(), SceneError> {
+    use crate::schema::SensorSpec;
+    let extent = MAX_WAVELENGTHS * wavelength;
+    let far = |p: [f64; 3]| p.iter().any(|c| !c.is_finite() || c.abs() > extent);
+    for (what, infos) in [("sources", sources), ("sensors", sensors)] {
+        for info in infos {
+            let Some(p) = info.position.filter(|p| far(*p)) else {
+                continue;
+            };
+            let e = info.entry;
+            let key = match (what, file.sensors.get(e)) {
+                ("sensors", Some(SensorSpec::PointGrid { origin, step_x, .. })) => {
+                    if far(*origin) {
+                        "origin"
+                    } else if far(*step_x)
+                        || info.ix.is_some_and(|ix| far(step_x.map(|c| c * ix as f64)))
+                    {
+                        "step_x"
+                    } else {
+                        "step_y"
+                    }
+                }
+                _ => "position",
+            };
+            let v = p.iter().fold(0.0f64, |a, c| a.max(c.abs()));
+            return Err(too_far(format!("{what}[{e}].{key}"), v, wavelength));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an extinction above [`MIN_FREE_PATH_WAVELENGTHS`] (the largest `sigma_t` of a grid),
+/// naming the field that sets it.
+fn check_extinction(file: &SceneFile, m: &AnyMedium, wavelength: f64) -> Result<(), SceneError> {
+    let sigma_t = match m {
+        AnyMedium::Box(b) => b.extinction(),
+        AnyMedium::Grid(g) => g.majorant(),
+    };
+    let limit = 1.0 / (MIN_FREE_PATH_WAVELENGTHS * wavelength);
+    if sigma_t.is_finite() && sigma_t <= limit {
+        return Ok(());
+    }
+    let med = &file.medium;
+    let field = if med.grid.is_some() {
+        "medium.grid"
+    } else if med.particles.is_some() {
+        "medium.particles"
+    } else if med.mean_free_path.is_some() {
+        "medium.mean_free_path"
+    } else if med.sigma_a.is_some_and(|a| a > med.sigma_s.unwrap_or(0.0)) {
+        "medium.sigma_a"
+    } else {
+        "medium.sigma_s"
+    };
+    Err(invalid(
+        field,
+        format!(
+            "gives an extinction sigma_t = {sigma_t:e} per length unit, a mean free path below \
+             {MIN_FREE_PATH_WAVELENGTHS:e} wavelengths: paths would not advance in double \
+             precision and would never end"
+        ),
+    ))
+}
+
+/// The columns of the `.sources.npy` and `.sensors.npy` tables beside a sidecar.
+pub const ENDPOINT_COLUMNS: [&str; 7] = ["entry", "kind", "x", "y", "z", "p", "q"];
+
+/// One row of an endpoint table: the entry, the kind, the direction (plane wave, far field) or
+/// position (point), and the generator's two parameters.
+fn endpoint_row(e: &EndpointInfo) -> [f64; 7] {
+    let kind = match e.kind {
+        "plane" => 0.0,
+        "point" => 1.0,
+        _ => 2.0,
+    };
+    let [x, y, z] = e.direction.or(e.position).unwrap_or([f64::NAN; 3]);
+    let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
+    let u = |v: Option<usize>| v.map(|v| v as f64);
+    let (p, q) = if e.tilt_deg.is_some() {
+        (f(e.tilt_deg), f64::NAN)
+    } else if e.angle_deg.is_some() {
+        (f(e.angle_deg), f(u(e.k)))
+    } else if e.theta_x_deg.is_some() {
+        (f(e.theta_x_deg), f(e.theta_y_deg))
+    } else {
+        (f(u(e.ix)), f(u(e.iy)))
+    };
+    [e.entry as f64, kind, x, y, z, p, q]
+}
 
 /// A validated scene file and everything the renderers and their reports need.
 #[derive(Debug, Clone)]
@@ -56,11 +196,24 @@ impl Problem {
     /// input files are looked up in `base`, `default_name` is the output prefix when the
     /// document sets none. Fields are checked in document order; the first bad one is named.
     pub fn build(
-        mut file: SceneFile,
+        file: SceneFile,
         origin: &str,
         base: &Path,
         default_name: &str,
     ) -> Result<Self, SceneError> {
+        Self::build_with(file, origin, base, default_name, Access::CONFINED)
+    }
+
+    /// [`Problem::build`] with input files and the output directory allowed where `access`
+    /// says ([`crate::safe`]).
+    pub fn build_with(
+        mut file: SceneFile,
+        origin: &str,
+        base: &Path,
+        default_name: &str,
+        access: Access,
+    ) -> Result<Self, SceneError> {
+        let files = Files { base, access };
         let name = file
             .name
             .clone()
@@ -77,20 +230,36 @@ impl Problem {
                 ));
             }
         };
-        let wavelength = positive("wavelength", file.wavelength)?;
+        let wavelength = in_range("wavelength", positive("wavelength", file.wavelength)?)?;
+        // Lengths far from the wavelength (or from 1) give products that overflow: checked
+        // before the medium is built from them.
+        let extent = MAX_WAVELENGTHS * wavelength;
+        for (i, (&s, &c)) in file.medium.size.iter().zip(&file.medium.center).enumerate() {
+            if s.is_finite() && s.abs() > extent {
+                return Err(too_far(format!("medium.size[{i}]"), s, wavelength));
+            }
+            if c.is_finite() && c.abs() + 0.5 * s.abs() > extent {
+                return Err(too_far(format!("medium.center[{i}]"), c, wavelength));
+            }
+        }
         let BuiltMedium {
             medium,
             phases,
             facts,
-        } = build_medium(&file.medium, file.phase.as_ref(), base, wavelength, dim)?;
+        } = build_medium(&file.medium, file.phase.as_ref(), files, wavelength, dim)?;
         // Light travels at the wavelength in the host.
-        let wavelength = wavelength / file.medium.host_index.unwrap_or(1.0);
+        let wavelength = in_range(
+            "medium.host_index",
+            wavelength / file.medium.host_index.unwrap_or(1.0),
+        )?;
         let bounds = *medium.bounds();
         let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
         let (sensors, sensor_desc, grid) = build_sensors(&mut file.sensors, &bounds)?;
+        check_extents(&file, &source_desc, &sensor_desc, wavelength)?;
+        check_extinction(&file, &medium, wavelength)?;
         let (pairs, all_pairs) = pairs(file.pairs.as_deref(), sources.len(), sensors.len())?;
         let render = RenderSettings::build(&file.render, &sources, dim)?;
-        let output = OutputSettings::build(&file.output)?;
+        let output = OutputSettings::build(&file.output, access)?;
         let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?;
         // Check the sampling configuration against the medium now rather than at render time.
         Tracer::with_types(scene.medium(), scene.phases(), render.sampling)
@@ -193,15 +362,22 @@ impl Problem {
 
     /// The speckle means of all pairs, and a warning where a closed form needs a homogeneous
     /// medium that the scene does not have (the far-field to far-field mean in a voxel grid of
-    /// varying extinction): those means are NaN.
-    pub fn means_or_nan(&self) -> Result<(Vec<Complex64>, Option<String>), SceneError> {
-        match self.scene.means() {
-            Ok(m) => Ok((m, None)),
+    /// varying extinction): those means are NaN. `None` once `cancelled` says so (it is asked
+    /// every few hundred microseconds).
+    #[allow(clippy::type_complexity)]
+    pub fn means_or_nan(
+        &self,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<(Vec<Complex64>, Option<String>)>, SceneError> {
+        match self.scene.means_cancellable(cancelled) {
+            Ok(None) => Ok(None),
+            Ok(Some(m)) => Ok(Some((m, None))),
             Err(SceneError::InvalidInput { field, reason }) if field == "medium" => {
                 let warning = format!(
                     "{reason}; the speckle mean of those pairs is written as NaN (the covariance \
                      does not depend on it)"
                 );
+                // Pairs of this kind fail at once; the others are those of an exit leg.
                 let means = self
                     .scene
                     .pairs()
@@ -213,7 +389,7 @@ impl Problem {
                         other => other,
                     })
                     .collect::<Result<_, _>>()?;
-                Ok((means, Some(warning)))
+                Ok(Some((means, Some(warning))))
             }
             Err(e) => Err(e),
         }
@@ -290,15 +466,66 @@ impl Problem {
         d
     }
 
-    /// `(source, sensor)` of every pair, in order, as JSON.
-    pub fn pair_list(&self) -> Value {
-        Value::Array(
-            self.scene
-                .pairs()
-                .iter()
-                .enumerate()
-                .map(|(j, p)| json!({"j": j, "source": p.source, "sensor": p.sensor}))
-                .collect(),
+    /// The stem of the sidecar of `command` (`<name>.cov` for `covariance`, `<name>.<command>`
+    /// otherwise); its tables are `<stem>.pairs.npy`, `<stem>.sources.npy`,
+    /// `<stem>.sensors.npy`.
+    pub fn sidecar_stem(&self, command: &str) -> String {
+        let suffix = if command == "covariance" {
+            "cov"
+        } else {
+            command
+        };
+        format!("{}.{suffix}", self.name)
+    }
+
+    /// The tables that go beside the sidecar of `command`, so that the JSON stays small for
+    /// any number of pairs: `(file name, .npy bytes)` of the pairs (int64 `(J, 2)`: source,
+    /// sensor) and of the expanded sources and sensors (float64 `(n, 7)`, columns
+    /// [`ENDPOINT_COLUMNS`]).
+    pub fn tables(&self, command: &str) -> Vec<(String, Vec<u8>)> {
+        let stem = self.sidecar_stem(command);
+        let pairs: Vec<i64> = self
+            .scene
+            .pairs()
+            .iter()
+            .flat_map(|p| [p.source as i64, p.sensor as i64])
+            .collect();
+        let endpoints = |infos: &[EndpointInfo]| {
+            let rows: Vec<f64> = infos.iter().flat_map(endpoint_row).collect();
+            npy::encode_f8(&[infos.len(), ENDPOINT_COLUMNS.len()], &rows)
+        };
+        vec![
+            (
+                format!("{stem}.pairs.npy"),
+                npy::encode_i8(&[self.pairs(), 2], &pairs),
+            ),
+            (format!("{stem}.sources.npy"), endpoints(&self.sources)),
+            (format!("{stem}.sensors.npy"), endpoints(&self.sensors)),
+        ]
+    }
+
+    /// The sidecar's entry for the tables of `command`: their files, counts and layouts.
+    fn table_json(&self, command: &str) -> (Value, Value, Value) {
+        let stem = self.sidecar_stem(command);
+        let endpoints = |what: &str, n: usize| {
+            json!({
+                "file": format!("{stem}.{what}.npy"),
+                "count": n,
+                "layout": format!("float64 ({n}, {}), one row per expanded {what} entry", ENDPOINT_COLUMNS.len()),
+                "columns": ENDPOINT_COLUMNS,
+                "kind": "0 plane wave, 1 point, 2 far field",
+                "p, q": "plane_tilts: tilt_deg, NaN; far_arc: angle_deg, k; far_grid: \
+                         theta_x_deg, theta_y_deg; point_grid: ix, iy; otherwise NaN, NaN",
+            })
+        };
+        (
+            json!({
+                "file": format!("{stem}.pairs.npy"),
+                "count": self.pairs(),
+                "layout": "int64 (J, 2): row j = [source, sensor] of pair j",
+            }),
+            endpoints("sources", self.n_sources()),
+            endpoints("sensors", self.n_sensors()),
         )
     }
 
@@ -326,16 +553,17 @@ impl Problem {
                  inf",
             ),
         };
+        let (pairs, sources, sensors) = self.table_json(command);
         json!({
             "command": command,
             "scene_file": self.origin,
             "scene": serde_json::to_value(&self.file).unwrap_or(Value::Null),
             "derived": self.derived(),
-            "sources": self.sources,
-            "sensors": self.sensors,
+            "sources": sources,
+            "sensors": sensors,
             "sensor_grid": self.grid_json(),
             "pairs_are_all_combinations": self.all_pairs,
-            "pairs": self.pair_list(),
+            "pairs": pairs,
             "render": render,
             "files": files,
             "summary": summary,

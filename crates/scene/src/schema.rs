@@ -444,6 +444,10 @@ pub struct Overrides {
     pub no_png: bool,
     /// `output.png_realizations`.
     pub png_realizations: Option<usize>,
+    /// Let the scene name absolute input files and files outside its folder, and an
+    /// `output.dir` outside the current directory (`--allow-outside`; see [`crate::safe`]).
+    /// `out` is the user's own choice and is never confined.
+    pub allow_outside: bool,
 }
 
 impl Overrides {

@@ -40,9 +40,24 @@ pub fn finite(field: impl Display, v: f64) -> Result<f64, SceneError> {
     }
 }
 
-/// An output prefix: non-empty, not starting with `.`, letters, digits, `_`, `-` and `.` only
-/// (so that it names files in the output directory and nowhere else).
+/// Longest output prefix: file names add at most about 50 characters to it
+/// (`.wave.r12345.s123.png`, `.cov_multiple.npy`), within the 255 bytes file systems allow.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// An output prefix: non-empty, at most [`MAX_NAME_CHARS`] characters, not starting with `.`,
+/// letters, digits, `_`, `-` and `.` only (so that it names files in the output directory and
+/// nowhere else).
 pub fn name(name: &str) -> Result<(), SceneError> {
+    if name.len() > MAX_NAME_CHARS {
+        return Err(invalid(
+            "name",
+            format!(
+                "has {} characters, more than {MAX_NAME_CHARS}: the output files' names would be \
+                 longer than file systems allow",
+                name.chars().count()
+            ),
+        ));
+    }
     let ok = !name.is_empty()
         && !name.starts_with('.')
         && name
@@ -55,7 +70,8 @@ pub fn name(name: &str) -> Result<(), SceneError> {
             "name",
             format!(
                 "must be non-empty, not start with '.', and use only letters, digits, '_', '-' \
-                 and '.' (got {name:?})"
+                 and '.' (got \"{}\")",
+                crate::safe::excerpt(name)
             ),
         ))
     }
@@ -69,11 +85,27 @@ pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     Ok(DVec3::from_array(v))
 }
 
-/// A finite non-zero vector, normalised.
+/// The smallest non-zero component of a direction, relative to its length.
+pub const MIN_COMPONENT: f64 = 1e-100;
+
+/// A finite non-zero vector, normalised; a non-zero component below [`MIN_COMPONENT`] of its
+/// length is refused.
 pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     let d = vec3(field, v)?;
     let len = d.length();
     if len > 0.0 && len.is_finite() {
+        // A component that is not zero but negligible beside the others (5e-324 beside 1) gives
+        // differences of directions whose squares underflow, and NaN results: refused, not
+        // rounded to 0 behind the user's back.
+        if let Some(i) = (0..3).find(|&i| v[i] != 0.0 && (v[i] / len).abs() < MIN_COMPONENT) {
+            return Err(invalid(
+                format!("{field}[{i}]"),
+                format!(
+                    "{:e} is not zero but negligible beside the vector's length {len:e} (below                      {MIN_COMPONENT:e} of it), so products of it underflow; write 0",
+                    v[i]
+                ),
+            ));
+        }
         Ok(d / len)
     } else {
         Err(invalid(

@@ -223,7 +223,29 @@ fn the_summary_and_the_sidecar_describe_the_scene() {
         meta["scene"]["sources"][0]["axis"],
         serde_json::json!([0.0, 1.0, 0.0])
     );
-    assert_eq!(meta["sources"][1]["tilt_deg"], 90.0);
+    // The expanded endpoints and pairs are tables beside the sidecar (issue 14).
+    assert_eq!(meta["sources"]["count"], 2);
+    assert_eq!(meta["sources"]["file"], "t.check.sources.npy");
+    assert_eq!(meta["pairs"]["count"], 6);
+    let tables = p.tables("check");
+    let names: Vec<&str> = tables.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "t.check.pairs.npy",
+            "t.check.sources.npy",
+            "t.check.sensors.npy"
+        ]
+    );
+    let sources = speckle_scene::npy::decode_real(&tables[1].1).unwrap();
+    assert_eq!(sources.shape, vec![2, 7]);
+    // Row 1: entry 0, a plane wave (kind 0), tilted by 90 degrees (column p).
+    assert_eq!(&sources.data[7..9], &[0.0, 0.0]);
+    assert_eq!(sources.data[7 + 5], 90.0);
+    let pairs = speckle_scene::npy::decode_real(&tables[0].1).unwrap();
+    assert_eq!(pairs.shape, vec![6, 2]);
+    assert!(pairs.integer);
+    assert_eq!(&pairs.data[2..4], &[0.0, 1.0]);
     assert_eq!(
         meta["derived"]["phase_mean_cosine"],
         p.scene.phase().mean_cosine()

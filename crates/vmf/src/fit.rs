@@ -70,7 +70,7 @@ impl FitOptions {
                 format!("must be in 1..=100000000 (got {})", self.max_iterations),
             );
         }
-        if !(64..=1 << 22).contains(&self.angles) || self.angles % 8 != 0 {
+        if !(64..=1 << 22).contains(&self.angles) || !self.angles.is_multiple_of(8) {
             return bad(
                 "angles",
                 format!(

@@ -2,6 +2,7 @@
 
 use crate::{WaveError, WaveScene, expected_scatterers};
 use speckle_medium::{Dimension, Medium};
+use speckle_scene::cost::Estimate;
 
 /// Rough single-thread speeds of the solver (measured on a 2-core x86-64 machine with AVX-512;
 /// the assembly dominates up to `N` of a few thousand): real flops per second of the dense
@@ -24,6 +25,28 @@ pub struct WaveCost {
     pub result_bytes: f64,
     /// Wall time, seconds (rough: from the speeds of one machine).
     pub seconds: f64,
+}
+
+impl WaveCost {
+    /// As a [`speckle_scene::cost::Estimate`], with `staged` bytes of output files added: the
+    /// memory is named after `medium` (the number of scatterers) when the matrices dominate, after
+    /// `render.configurations` otherwise; the time after `medium`, whose size and density set
+    /// `N^3`, unless the configurations are many.
+    pub fn estimate(&self, staged: f64) -> Estimate {
+        let matrices = self.matrix_bytes > self.result_bytes + staged;
+        Estimate {
+            bytes: self.matrix_bytes + self.result_bytes + staged,
+            memory_field: if matrices {
+                "medium"
+            } else {
+                "render.configurations"
+            }
+            .into(),
+            seconds: self.seconds,
+            time_field: "medium".into(),
+            vertices_per_path: 0.0,
+        }
+    }
 }
 
 /// The cost of `configurations` configurations of `scene` on `threads` threads: per

@@ -51,12 +51,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 /// Renders and writes the covariance of `p`.
 pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     let j = p.covariance_size(threads()).map_err(in_scene(p))?;
+    let mut staged = plan(p, estimate(p, Command::Covariance), run)?;
     let opts = options(p);
     let ((est, mean), wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
-        Ok::<_, EstimatorError>((render_covariance(&p.scene, &opts, pr)?, means(p)?))
+        let est = render_covariance(&p.scene, &opts, pr)?;
+        Ok::<_, EstimatorError>((est, means(p, pr)?))
     })?;
     let n = &p.name;
-    let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
         "layout": "cov*: complex128 (J, J), row j1 column j2 = pairs[j1], pairs[j2]; \
                    cov_stderr: re = standard error of Re C, im = of Im C (batch means over 128 \
@@ -89,7 +90,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     });
     let render = p.render.paths_json(threads(), wall);
     let meta = p.sidecar("covariance", render, files, summary);
-    stage_json(&mut staged, format!("{n}.cov.json"), &meta)?;
+    stage_sidecar(&mut staged, p, "covariance", &meta)?;
     say!(
         "{n}: covariance of J = {j} pairs from {} paths in {wall:.2} s ({} threads); mean \
          diagonal {total_diag:.4e} (max relative stderr {:.2}%)",

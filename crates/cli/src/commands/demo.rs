@@ -18,7 +18,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     set_threads(a.threads)?;
-    install_interrupt_handler();
+    install_interrupt_handler(true);
     let o = Overrides {
         out: Some(a.out),
         ..Overrides::default()
@@ -28,6 +28,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let run = RunOptions {
         quiet: a.quiet,
         cancel_after: None,
+        force: false,
     };
     let start = Instant::now();
     covariance::render(&p, run)?;

@@ -49,6 +49,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     let (j, rr) = (p.pairs(), r.realizations);
     p.field_rows_size(rr, "render.realizations")
         .map_err(in_scene(p))?;
+    let mut staged = plan(p, estimate(p, Command::Fields), run)?;
     let opts = FieldOptions {
         realizations: rr,
         paths_per_realization: r.paths_per_realization,
@@ -64,7 +65,6 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     let n = &p.name;
     let (shape, layout) = layout(p, rr, "realization");
     let data = est.fields.as_slice();
-    let mut staged = Staged::new(p.out_dir());
     staged.add(format!("{n}.fields.npy"), encode_c16(&shape, data));
     if r.add_mean {
         staged.add(format!("{n}.mean.npy"), encode_c16(&[j], &est.mean));
@@ -91,7 +91,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
         "wall_time_s": wall,
     });
     let meta = p.sidecar("fields", render, files, summary);
-    stage_json(&mut staged, format!("{n}.fields.json"), &meta)?;
+    stage_sidecar(&mut staged, p, "fields", &meta)?;
     say!(
         "{n}: {rr} field realizations of J = {j} pairs ({} paths each) in {wall:.2} s ({} \
          threads); intensity contrast {}",

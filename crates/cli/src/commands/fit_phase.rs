@@ -77,6 +77,8 @@ fn target(a: &Args) -> anyhow::Result<FitTarget> {
 /// use), `<name>.vmf.json` (the report) and `<name>.vmf_curves.npy` (`theta`, target `|s|`,
 /// fitted `s`, shape `(n, 3)`).
 pub fn run(a: Args) -> anyhow::Result<()> {
+    install_interrupt_handler(false);
+    let staged = a.out.as_deref().map(prepare).transpose()?;
     let fit = Fit::run(&FitRequest {
         target: target(&a)?,
         tolerance: a.tolerance,
@@ -85,11 +87,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     })
     .map_err(error::fit)?;
     say!("{}", fit.text().trim_end());
-    let Some(dir) = &a.out else {
+    let Some(mut staged) = staged else {
         return Ok(());
     };
     let names = ["vmf.toml", "vmf.json", "vmf_curves.npy"].map(|f| format!("{}.{f}", a.name));
-    let mut staged = Staged::new(dir);
     staged.add(names[0].clone(), fit.phase_toml().into_bytes());
     staged.add(
         names[1].clone(),
@@ -97,7 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let shape = [Fit::CURVE_POINTS, 3];
     staged.add(names[2].clone(), encode_f8(&shape, &fit.curves()));
-    for p in staged.commit(|| false)? {
+    for p in staged.commit(|| false).map_err(error::output)? {
         say!("wrote {}", p.display());
     }
     Ok(())

@@ -8,6 +8,7 @@ use speckle::scene::npy::encode_f8;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
+    let mut staged = plan(&p, estimate(&p, Command::Intensity), run)?;
     let opts = options(&p);
     let (est, wall) = run.timed(&p, opts.paths, "paths", error::estimator, |pr| {
         render_intensity(&p.scene, &opts, pr)
@@ -21,7 +22,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     );
     let n = &p.name;
     let shape = p.pair_shape();
-    let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
         "shape": shape,
         "layout": if p.all_pairs {
@@ -65,7 +65,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     });
     let render = p.render.paths_json(threads(), wall);
     let meta = p.sidecar("intensity", render, files, summary);
-    stage_json(&mut staged, format!("{n}.intensity.json"), &meta)?;
+    stage_sidecar(&mut staged, &p, "intensity", &meta)?;
     say!(
         "{n}: intensity of J = {} pairs from {} paths in {wall:.2} s ({} threads); mean \
          {mean:.4e} (max relative stderr {:.2}%)",

@@ -15,21 +15,38 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+    /// No cost estimate.
+    #[arg(long, short)]
+    quiet: bool,
+    /// Run even when the estimated memory exceeds the machine's or the rough time a day.
+    #[arg(long)]
+    force: bool,
+    /// Let the scene read files outside its folder and write outside the current directory.
+    #[arg(long)]
+    allow_outside: bool,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let o = Overrides {
         out: a.out.clone(),
+        allow_outside: a.allow_outside,
         ..Overrides::default()
     };
     let p = load_file(&a.scene, &o)?;
     set_threads(a.threads)?;
+    install_interrupt_handler(true);
+    let run = RunOptions {
+        quiet: a.quiet,
+        cancel_after: None,
+        force: a.force,
+    };
+    let mut staged = plan(&p, estimate(&p, Command::Mean), run)?;
     let start = Instant::now();
-    let mean = means(&p).map_err(|e| error::estimator(e.into()))?;
+    let progress = CliProgress::new(0, "pairs", &p.name, true, None);
+    let mean = means(&p, &progress).map_err(error::estimator)?;
     let wall = start.elapsed().as_secs_f64();
     let n = &p.name;
     let j = p.pairs();
-    let mut staged = Staged::new(p.out_dir());
     staged.add(format!("{n}.mean.npy"), encode_c16(&[j], &mean));
     let files = json!({
         "mean": format!("{n}.mean.npy"),
@@ -38,7 +55,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let render = json!({"threads": threads(), "wall_time_s": wall});
     let summary = json!({"mean_coherent_intensity": coherent_intensity(&mean)});
     let meta = p.sidecar("mean", render, files, summary);
-    stage_json(&mut staged, format!("{n}.mean.json"), &meta)?;
+    stage_sidecar(&mut staged, &p, "mean", &meta)?;
     say!("{n}: speckle mean of J = {j} pairs in {wall:.2} s");
     for (k, (m, pair)) in mean.iter().zip(p.scene.pairs()).enumerate().take(8) {
         say!(

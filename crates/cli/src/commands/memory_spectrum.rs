@@ -24,9 +24,15 @@ pub struct Args {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
-    /// No progress bar.
+    /// No progress bar nor cost estimate.
     #[arg(long, short)]
     quiet: bool,
+    /// Run even when the estimated memory exceeds the machine's or the rough time a day.
+    #[arg(long)]
+    force: bool,
+    /// Let the study write to an `output.dir` outside the current directory.
+    #[arg(long)]
+    allow_outside: bool,
     /// Testing aid: behave as if ctrl-c was pressed once this many paths are done.
     #[arg(long, hide = true, value_name = "PATHS")]
     cancel_after_paths: Option<u64>,
@@ -37,13 +43,21 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         paths: a.paths,
         seed: a.seed,
         out: a.out.clone(),
+        allow_outside: a.allow_outside,
     };
     let s = load_file(&a.study, &o)?;
     set_threads(a.threads)?;
-    install_interrupt_handler();
+    install_interrupt_handler(true);
+    let mut staged = prepare(&s.file.output.dir)?;
     let bands = s.prepare()?;
     if let Some(note) = s.density_note(&bands) {
         tell!("{note}");
+    }
+    let cost = s.estimate(&bands, threads());
+    speckle::scene::cost::guard(&cost, speckle::scene::cost::machine_memory(), a.force)
+        .map_err(|e| LoadError::from(e).in_document(&s.origin))?;
+    if !a.quiet {
+        say!("{}: estimate: {}", s.name, cost.describe());
     }
     let r = &s.file.render;
     let total = (bands.len() as u64).saturating_mul(r.paths);
@@ -54,7 +68,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     say!("{}", result.text(&s).trim_end());
 
     let n = &s.name;
-    let mut staged = Staged::new(&s.file.output.dir);
     let mut files = json!({ "layout": LAYOUT });
     for array in result.arrays(&s) {
         let file = format!("{n}.{}.npy", array.key);

@@ -60,8 +60,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         angles: a.angles,
     })
     .map_err(error::flags)?;
+    install_interrupt_handler(false);
+    let staged = a.out.as_deref().map(prepare).transpose()?;
     say!("{}", report.text().trim_end());
-    let Some(dir) = &a.out else {
+    let Some(mut staged) = staged else {
         return Ok(());
     };
     let table = report.table().map_err(error::flags)?;
@@ -73,13 +75,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "mie.json",
     ]
     .map(|f| format!("{}.{f}", a.name));
-    let mut staged = Staged::new(dir);
     staged.add(files[0].clone(), csv.into_bytes());
     staged.add(files[1].clone(), encode_c16(&[report.angles, 2], &s12));
     staged.add(files[2].clone(), encode_f8(&[report.angles], &theta));
     let sidecar = report.describe(&table, &files);
     staged.add(files[3].clone(), serde_json::to_vec_pretty(&sidecar)?);
-    for p in staged.commit(|| false)? {
+    for p in staged.commit(|| false).map_err(error::output)? {
         say!("wrote {}", p.display());
     }
     Ok(())

@@ -14,16 +14,17 @@ pub mod mie;
 pub mod single;
 pub mod wave;
 
-use crate::error::InputError;
-use crate::image::{Gray, scale_for};
-use crate::output::Staged;
+use crate::error::{self, InputError};
+use crate::image::Gray;
 use crate::progress::{CliProgress, install_interrupt_handler, interrupted};
 use serde_json::{Value, json};
-use speckle::estimators::{CMatrix, MatrixEstimate};
+use speckle::estimators::{CMatrix, MatrixEstimate, Progress};
 use speckle::phase::Complex64;
 use speckle::scene::build::endpoints::SensorGrid;
+use speckle::scene::cost::{self, Command, Estimate};
 use speckle::scene::{LoadError, Overrides, Problem, load_file};
-use std::path::PathBuf;
+use speckle_output::Staged;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of every render command.
@@ -40,9 +41,16 @@ pub struct Common {
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
-    /// No progress bar (nor the cost estimate of `wave`).
+    /// No progress bar (nor the cost estimate).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Run even when the estimated memory exceeds the machine's or the rough time a day.
+    #[arg(long)]
+    pub force: bool,
+    /// Let the scene read files outside its folder (or absolute paths) and write to an
+    /// `output.dir` outside the current directory.
+    #[arg(long)]
+    pub allow_outside: bool,
     /// Testing aid: behave as if ctrl-c was pressed once this many paths (configurations for
     /// `wave`) are done.
     #[arg(long, hide = true, value_name = "PATHS")]
@@ -55,6 +63,7 @@ impl Common {
         Overrides {
             seed: self.seed,
             out: self.out.clone(),
+            allow_outside: self.allow_outside,
             ..more
         }
     }
@@ -63,10 +72,11 @@ impl Common {
     pub fn load(&self, overrides: Overrides) -> anyhow::Result<(Problem, RunOptions)> {
         let p = load_file(&self.scene, &self.overrides(overrides))?;
         set_threads(self.threads)?;
-        install_interrupt_handler();
+        install_interrupt_handler(true);
         let run = RunOptions {
             quiet: self.quiet,
             cancel_after: self.cancel_after_paths,
+            force: self.force,
         };
         Ok((p, run))
     }
@@ -94,6 +104,8 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Testing aid: cancel as if ctrl-c was pressed once this many paths are done.
     pub cancel_after: Option<u64>,
+    /// Go ahead whatever the estimated cost.
+    pub force: bool,
 }
 
 impl RunOptions {
@@ -115,14 +127,46 @@ impl RunOptions {
     }
 }
 
+/// Before any work: refuses what the estimate `e` of a render of `p` says exceeds the machine
+/// (unless `--force`), prints the estimate (unless `-q`), and checks the output directory
+/// (rolling back a commit that a killed run left there). Returns the empty staging area.
+pub fn plan(
+    p: &Problem,
+    e: Result<Estimate, speckle::scene::SceneError>,
+    run: RunOptions,
+) -> anyhow::Result<Staged> {
+    let e = e.map_err(in_scene(p))?;
+    cost::guard(&e, cost::machine_memory(), run.force).map_err(in_scene(p))?;
+    if !run.quiet {
+        say!("{}: estimate: {}", p.name, e.describe());
+    }
+    prepare(p.out_dir())
+}
+
+/// The estimate of `command` on `p` with the threads in use.
+pub fn estimate(p: &Problem, command: Command) -> Result<Estimate, speckle::scene::SceneError> {
+    p.estimate(command, threads())
+}
+
+/// Checks the output directory `dir` before any work and returns an empty staging area for it.
+pub fn prepare(dir: &Path) -> anyhow::Result<Staged> {
+    Staged::prepare(dir).map_err(error::output)
+}
+
 /// A scene error of `p`, in its document (exit code 2).
 pub fn in_scene(p: &Problem) -> impl Fn(speckle::scene::SceneError) -> LoadError + '_ {
     move |e| p.in_document(e)
 }
 
-/// The speckle means of all pairs, with a warning printed where they are NaN.
-pub fn means(p: &Problem) -> Result<Vec<Complex64>, speckle::scene::SceneError> {
-    let (means, warning) = p.means_or_nan()?;
+/// The speckle means of all pairs, with a warning printed where they are NaN;
+/// `progress` is asked for cancellation inside the quadrature.
+pub fn means(
+    p: &Problem,
+    progress: &dyn Progress,
+) -> Result<Vec<Complex64>, speckle::estimators::EstimatorError> {
+    let Some((means, warning)) = p.means_or_nan(&|| progress.cancelled())? else {
+        return Err(speckle::estimators::EstimatorError::Cancelled);
+    };
     if let Some(w) = warning {
         tell!("warning: {w}");
     }
@@ -168,8 +212,9 @@ pub fn stage_magnitude_png(
     }
     let v: Vec<f64> = m.as_slice().iter().map(|c| c.norm()).collect();
     let max = v.iter().copied().fold(0.0, f64::max);
+    let scale = p.png_scale(m.cols(), m.rows()).map_err(in_scene(p))?;
     let png = Gray::from_values(m.cols(), m.rows(), &v, max)
-        .upscaled(scale_for(m.cols(), m.rows(), p.output.png_scale))
+        .upscaled(scale)
         .encode_png()?;
     let file = format!("{stem}.png");
     staged.add(file.clone(), png);
@@ -182,8 +227,9 @@ pub fn stage_magnitude_png(
 
 /// One value per sensor of the image `g` as a PNG (`white` maps to 255), upscaled.
 pub fn grid_png(p: &Problem, g: SensorGrid, values: &[f64], white: f64) -> anyhow::Result<Vec<u8>> {
+    let scale = p.png_scale(g.nx, g.ny).map_err(in_scene(p))?;
     Gray::from_values(g.nx, g.ny, values, white)
-        .upscaled(scale_for(g.nx, g.ny, p.output.png_scale))
+        .upscaled(scale)
         .encode_png()
 }
 
@@ -209,9 +255,24 @@ pub fn stage_json(staged: &mut Staged, name: String, v: &Value) -> anyhow::Resul
     Ok(())
 }
 
-/// Writes the staged files unless interrupted and prints them.
+/// Stages the sidecar `meta` of `command` as `<stem>.json` with its tables of pairs, sources
+/// and sensors (`<stem>.pairs.npy`, ...).
+pub fn stage_sidecar(
+    staged: &mut Staged,
+    p: &Problem,
+    command: &str,
+    meta: &Value,
+) -> anyhow::Result<()> {
+    stage_json(staged, format!("{}.json", p.sidecar_stem(command)), meta)?;
+    for (name, bytes) in p.tables(command) {
+        staged.add(name, bytes);
+    }
+    Ok(())
+}
+
+/// Writes the staged files, all or none, unless interrupted, and prints them.
 pub fn finish(staged: Staged) -> anyhow::Result<()> {
-    for p in staged.commit(interrupted)? {
+    for p in staged.commit(interrupted).map_err(error::output)? {
         say!("  wrote {}", p.display());
     }
     Ok(())

@@ -26,12 +26,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         ..Overrides::default()
     })?;
     let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
+    let mut staged = plan(&p, estimate(&p, Command::Single), run)?;
     let opts = options(&p);
     let (est, wall) = run.timed(&p, opts.paths, "paths", error::estimator, |pr| {
         render_single_scattering(&p.scene, &opts, pr)
     })?;
     let n = &p.name;
-    let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
         "layout": "complex128 (J, J): the single-scattering covariance of Eq. 41 (first vertices \
                    only, no path tracing); stderr: re = standard error of Re, im = of Im",
@@ -64,7 +64,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "wall_time_s": wall,
     });
     let meta = p.sidecar("single", render, files, summary);
-    stage_json(&mut staged, format!("{n}.single.json"), &meta)?;
+    stage_sidecar(&mut staged, &p, "single", &meta)?;
     say!(
         "{n}: single-scattering covariance of J = {j} pairs from {} first vertices in {wall:.2} s \
          ({} threads); mean diagonal {diag:.4e}",

@@ -5,6 +5,7 @@
 use super::fields::{FieldImages, layout};
 use super::*;
 use crate::error;
+use speckle::scene::cost::{human_bytes, human_seconds};
 use speckle::scene::npy::encode_c16;
 use speckle::wave::{Kernel, WaveOptions, estimate_cost, number_density, render_wave};
 
@@ -19,28 +20,6 @@ pub struct Args {
     /// Write no PNG.
     #[arg(long)]
     no_png: bool,
-}
-
-/// `n` bytes in a unit a reader takes in at a glance.
-fn human_bytes(n: f64) -> String {
-    let mut v = n;
-    for unit in ["B", "KiB", "MiB", "GiB"] {
-        if v < 1024.0 {
-            return format!("{v:.0} {unit}");
-        }
-        v /= 1024.0;
-    }
-    format!("{v:.1} TiB")
-}
-
-/// `t` seconds in a unit a reader takes in at a glance.
-fn human_seconds(t: f64) -> String {
-    match t {
-        t if t < 1.0 => "under a second".to_string(),
-        t if t < 120.0 => format!("{t:.0} s"),
-        t if t < 7200.0 => format!("{:.0} min", t / 60.0),
-        t => format!("{:.1} h", t / 3600.0),
-    }
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
@@ -58,6 +37,16 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
     p.field_rows_size(rr, "render.configurations")
         .map_err(in_scene(&p))?;
+    // The staged outputs: fields, covariance and its errors, means, PNGs.
+    let (_, cov_png) = p.pngs(Command::Covariance, rr).map_err(in_scene(&p))?;
+    let (_, field_png) = p.pngs(Command::Fields, rr).map_err(in_scene(&p))?;
+    let (jf, rf) = (j as f64, rr as f64);
+    let staged_bytes = 16.0 * (rf * jf + 2.0 * jf * jf + 2.0 * jf) + cov_png + field_png;
+    let mut staged = plan(
+        &p,
+        Ok(cost.estimate(staged_bytes)),
+        RunOptions { quiet: true, ..run },
+    )?;
     if !run.quiet {
         say!(
             "{}: wave solver: {rr} configurations of about {:.1} scatterers (N = sigma_s |V| / \
@@ -81,7 +70,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let n = &p.name;
     let cov = &est.covariance;
     let (fields_shape, fields_layout) = layout(&p, rr, "configuration");
-    let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
         "layout": format!(
             "wave_cov, wave_cov_stderr: complex128 (J, J), row j1 column j2 = pairs[j1], \
@@ -157,7 +145,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "wall_time_s": wall,
     });
     let meta = p.sidecar("wave", render, files, summary);
-    stage_json(&mut staged, format!("{n}.wave.json"), &meta)?;
+    stage_sidecar(&mut staged, &p, "wave", &meta)?;
     say!(
         "{n}: exact wave covariance of J = {j} pairs from {rr} configurations ({:.1} scatterers \
          on average, {:.1} expected) in {wall:.2} s ({} threads); mean diagonal {diag:.4e} (max \

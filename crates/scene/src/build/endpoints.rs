@@ -342,6 +342,15 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                     ));
                 }
                 let [first, last] = *angles_deg;
+                if !(last - first).is_finite() {
+                    return Err(invalid(
+                        f("angles_deg"),
+                        format!(
+                            "the range {first:e} to {last:e} degrees overflows; give angles of \
+                             ordinary size"
+                        ),
+                    ));
+                }
                 for k in 0..*n {
                     let t = first + (last - first) * k as f64 / (*n - 1).max(1) as f64;
                     let v = rotated(c, a, t, dim);
@@ -369,6 +378,24 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 }
                 if *ny > 1 && sy == DVec3::ZERO {
                     return Err(invalid(f("step_y"), "must be non-zero when ny > 1"));
+                }
+                // The farthest points must be finite (a step times a count may overflow).
+                let (last_x, last_y) = (sx * (*nx - 1) as f64, sy * (*ny - 1) as f64);
+                for (key, v) in [
+                    ("step_x", last_x),
+                    ("step_y", last_y),
+                    ("origin", o + last_x + last_y),
+                ] {
+                    if !v.is_finite() {
+                        return Err(invalid(
+                            f(key),
+                            format!(
+                                "the grid's points overflow (step times count is not finite: \
+                                 {:?})",
+                                v.to_array()
+                            ),
+                        ));
+                    }
                 }
                 for iy in 0..*ny {
                     for ix in 0..*nx {

@@ -9,6 +9,7 @@
 use super::phase::build_phase;
 use crate::SceneError;
 use crate::npy;
+use crate::safe::{Files, MAX_GRID_BYTES};
 use crate::schema::{GridKind, MaterialSpec, MediumSpec, ParticleSpec, PhaseSpec};
 use crate::validate::{invalid, non_negative, position, positive};
 use serde::Serialize;
@@ -220,17 +221,14 @@ fn grid_error(e: &MediumError) -> SceneError {
     invalid("medium.grid", e)
 }
 
-/// Reads a grid `.npy` (relative to `base`) and checks its shape against the dimension;
-/// returns `[nx, ny, nz]` and the array.
+/// Reads a grid `.npy` from `files` and checks its shape against the dimension; returns
+/// `[nx, ny, nz]` and the array.
 fn read_grid(
     file: &Path,
-    base: &Path,
+    files: Files<'_>,
     dim: Dimension,
 ) -> Result<([usize; 3], npy::RealArray), SceneError> {
-    let path = base.join(file);
-    let shown = path.display().to_string();
-    let bytes = std::fs::read(&path)
-        .map_err(|e| invalid("medium.grid.file", format!("cannot read {shown}: {e}")))?;
+    let (bytes, shown) = files.read("medium.grid.file", file, MAX_GRID_BYTES)?;
     let a = npy::decode_real(&bytes)
         .map_err(|e| invalid("medium.grid.file", format!("{shown}: {e}")))?;
     let dims = match (dim, a.shape.as_slice()) {
@@ -277,12 +275,12 @@ fn bounds(m: &MediumSpec, dim: Dimension) -> Result<Aabb, SceneError> {
 }
 
 /// The medium of `[medium]` with the scene's `[phase]` (`phase`): a box or a grid, of
-/// coefficients, particles or materials. Input files are relative to `base`;
+/// coefficients, particles or materials. Input files are read from `files`;
 /// `vacuum_wavelength` is the scene's `wavelength`.
 pub fn build_medium(
     m: &MediumSpec,
     phase: Option<&PhaseSpec>,
-    base: &Path,
+    files: Files<'_>,
     vacuum_wavelength: f64,
     dim: Dimension,
 ) -> Result<BuiltMedium, SceneError> {
@@ -313,7 +311,7 @@ pub fn build_medium(
             ));
         }
         let list = m.materials.as_deref().unwrap_or_default();
-        return material_grid(m, list, b, base, dim);
+        return material_grid(m, list, b, files, dim);
     }
     // One material: coefficients or particles, then a box or a density grid.
     let (material, host_sigma_a, phases, facts) = match &m.particles {
@@ -345,7 +343,7 @@ pub fn build_medium(
             let phase = build_phase(
                 phase.unwrap_or(&PhaseSpec::Isotropic {}),
                 "phase",
-                base,
+                files,
                 dim,
             )?;
             (Material::single(s, a), 0.0, vec![phase], None)
@@ -363,7 +361,7 @@ pub fn build_medium(
             AnyMedium::Box(b)
         }
         Some(g) => {
-            let (dims, a) = read_grid(&g.file, base, dim)?;
+            let (dims, a) = read_grid(&g.file, files, dim)?;
             let grid = VoxelGrid::from_densities(b, dims, a.data, material, host_sigma_a)
                 .map_err(|e| grid_error(&e))?;
             AnyMedium::Grid(grid)
@@ -381,7 +379,7 @@ fn material_grid(
     m: &MediumSpec,
     list: &[MaterialSpec],
     b: Aabb,
-    base: &Path,
+    files: Files<'_>,
     dim: Dimension,
 ) -> Result<BuiltMedium, SceneError> {
     if list.is_empty() {
@@ -404,12 +402,12 @@ fn material_grid(
         phases.push(build_phase(
             &mat.phase,
             &format!("{prefix}.phase"),
-            base,
+            files,
             dim,
         )?);
     }
     let grid = m.grid.as_ref().expect("a materials grid");
-    let (dims, a) = read_grid(&grid.file, base, dim)?;
+    let (dims, a) = read_grid(&grid.file, files, dim)?;
     if !a.integer {
         return Err(invalid(
             "medium.grid.file",

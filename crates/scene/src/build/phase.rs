@@ -8,6 +8,7 @@
 
 use crate::SceneError;
 use crate::examples;
+use crate::safe::{Files, MAX_TABLE_BYTES, excerpt, strip_bom};
 use crate::schema::PhaseSpec;
 use crate::validate::invalid;
 use speckle_medium::Dimension;
@@ -15,7 +16,6 @@ use speckle_phase::{
     Complex64, FlatTabulatedAmplitude, HgMixture, Phase, PhaseError, TabulatedAmplitude, VmfMixture,
 };
 use std::fmt::Write as _;
-use std::path::Path;
 use std::sync::Arc;
 
 /// The prefix of `phase.file` that names a table embedded in the binary
@@ -23,11 +23,11 @@ use std::sync::Arc;
 pub const EMBEDDED: &str = "embedded:";
 
 /// The phase function of `p`; `field` names the table (`phase`, `medium.materials[1].phase`),
-/// files are relative to `base`.
+/// files are read from `files`.
 pub fn build_phase(
     p: &PhaseSpec,
     field: &str,
-    base: &Path,
+    files: Files<'_>,
     dim: Dimension,
 ) -> Result<Phase, SceneError> {
     let f = |k: &str| format!("{field}.{k}");
@@ -58,13 +58,7 @@ pub fn build_phase(
                     })?;
                     (text.to_string(), file.display().to_string())
                 }
-                None => {
-                    let path = base.join(file);
-                    let shown = path.display().to_string();
-                    let text = std::fs::read_to_string(&path)
-                        .map_err(|e| invalid(f("file"), format!("cannot read {shown}: {e}")))?;
-                    (text, shown)
-                }
+                None => files.read_text(&f("file"), file, MAX_TABLE_BYTES)?,
             };
             read_table(&text, &shown, dim, &f("file"))
         }
@@ -118,8 +112,9 @@ pub fn read_table(
     parse_table(text, shown, dim).map_err(|reason| invalid(field, reason))
 }
 
+/// The table's messages quote its contents only through [`excerpt`].
 fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String> {
-    let mut lines = text
+    let mut lines = strip_bom(text)
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
@@ -144,7 +139,8 @@ fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String>
             };
             return Err(format!(
                 "{shown} line {hl}: the header must be {allowed} (`re_s`, `im_s` are accepted \
-                 for `re`, `im`; got `{header}`)"
+                 for `re`, `im`; got `{}`)",
+                excerpt(header)
             ));
         }
     };
@@ -160,7 +156,8 @@ fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String>
         let v: Vec<&str> = line.split(',').map(str::trim).collect();
         if v.len() != 3 {
             return Err(format!(
-                "{shown} line {n}: expected 3 comma-separated numbers (got `{line}`)"
+                "{shown} line {n}: expected 3 comma-separated numbers (got `{}`)",
+                excerpt(line)
             ));
         }
         let mut num = [0.0; 3];
@@ -171,7 +168,8 @@ fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String>
                 .filter(|f| f.is_finite())
                 .ok_or_else(|| {
                     format!(
-                        "{shown} line {n}: `{t}` in column {} is not a finite number",
+                        "{shown} line {n}: `{}` in column {} is not a finite number",
+                        excerpt(t),
                         k + 1
                     )
                 })?;
@@ -181,6 +179,19 @@ fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String>
     }
     if x.len() < 2 {
         return Err(format!("{shown}: at least two rows are needed"));
+    }
+    // Tables are normalised, so their scale is free: bring the largest modulus near 1 by a
+    // power of two (exact, so the normalised table is bitwise the same), so that |s|^2 of
+    // values near the limits of f64 (1e200, 1e-200) neither overflows nor underflows.
+    let largest = s
+        .iter()
+        .map(|c| c.re.abs().max(c.im.abs()))
+        .fold(0.0, f64::max);
+    if largest > 0.0 && !(1e-100..=1e100).contains(&largest) {
+        let scale = (-largest.log2().round()).exp2();
+        for c in &mut s {
+            *c = Complex64::new(c.re * scale, c.im * scale);
+        }
     }
     let wrap = |e: PhaseError| format!("{shown}: {e}");
     if abscissa == "mu" {

@@ -5,6 +5,7 @@
 //! `WaveOptions`).
 
 use crate::SceneError;
+use crate::safe::{Access, output_dir};
 use crate::schema::{FirstDirectionSpec, FirstVertexSpec, OutputSpec, RenderSpec};
 use crate::validate::{flat_direction, invalid};
 use serde_json::{Value, json};
@@ -184,11 +185,10 @@ pub struct OutputSettings {
 }
 
 impl OutputSettings {
-    /// Validates `[output]`.
-    pub fn build(o: &OutputSpec) -> Result<Self, SceneError> {
-        if o.dir.as_os_str().is_empty() {
-            return Err(invalid("output.dir", "must not be empty"));
-        }
+    /// Validates `[output]`; `access` says whether the directory may be outside the current
+    /// directory ([`crate::safe::output_dir`]).
+    pub fn build(o: &OutputSpec, access: Access) -> Result<Self, SceneError> {
+        output_dir("output.dir", &o.dir, access)?;
         if let Some(s) = o.png_scale
             && !(1..=64).contains(&s)
         {

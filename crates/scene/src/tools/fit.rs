@@ -99,9 +99,9 @@ fn target_phase(t: &FitTarget) -> Result<(Phase, String), SceneError> {
             Ok((Phase::Tabulated(Arc::new(table)), what))
         }
         FitTarget::Table(path) => {
-            let shown = path.display().to_string();
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| invalid("table", format!("cannot read {shown}: {e}")))?;
+            // A path from the command line: the user's choice, read as any input file.
+            let shown = crate::safe::shown_path(path);
+            let text = crate::safe::read_text("table", path, &shown, crate::safe::MAX_TABLE_BYTES)?;
             let p = read_table(&text, &shown, Dimension::Three, "table")?;
             Ok((p, format!("table {shown}")))
         }
@@ -261,7 +261,7 @@ mod tests {
         let p = crate::build::phase::build_phase(
             &spec,
             "phase",
-            std::path::Path::new("."),
+            crate::safe::Files::confined(std::path::Path::new(".")),
             Dimension::Three,
         )
         .unwrap();

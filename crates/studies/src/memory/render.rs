@@ -208,6 +208,40 @@ impl Study {
         bands[0].density * 4.0 / 3.0 * PI * self.radius.powi(3)
     }
 
+    /// The rough cost of rendering `bands` on `threads` threads: every wavelength renders
+    /// `render.paths` paths of a slab's expected length ([`speckle_scene::cost`]); the memory
+    /// is small (a covariance of the tilts per thread).
+    pub fn estimate(&self, bands: &[Band], threads: usize) -> speckle_scene::cost::Estimate {
+        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        let n = self.angles.len() as f64;
+        let paths = self.file.render.paths as f64;
+        let seconds: f64 = bands
+            .iter()
+            .map(|b| {
+                let t = b.sigma_t();
+                let taus = [t * self.width, t * self.width, t * self.thickness];
+                let albedo = if t > 0.0 { b.sigma_s / t } else { 0.0 };
+                let v = expected_vertices(
+                    &taus,
+                    albedo,
+                    b.table_mean_cosine,
+                    speckle_medium::Dimension::Three,
+                    u32::MAX,
+                );
+                covariance_seconds(paths, v, 2.0 * n, n)
+            })
+            .sum();
+        let groups = self.file.render.groups as f64;
+        speckle_scene::cost::Estimate {
+            bytes: 16.0 * n * n * (8.0 + 4.0 * threads as f64) * groups.min(4.0)
+                + 1e6 * bands.len() as f64,
+            memory_field: "angles_deg".into(),
+            seconds: seconds / threads.max(1) as f64,
+            time_field: "render.paths".into(),
+            vertices_per_path: 0.0,
+        }
+    }
+
     /// A note when the spheres are too dense for the bulk model's independent scattering.
     pub fn density_note(&self, bands: &[Band]) -> Option<String> {
         let fraction = self.volume_fraction(bands);

@@ -196,6 +196,8 @@ pub struct StudyOverrides {
     pub seed: Option<u64>,
     /// `output.dir`.
     pub out: Option<PathBuf>,
+    /// Let the study's `output.dir` be outside the current directory (`--allow-outside`).
+    pub allow_outside: bool,
 }
 
 /// Reads the TOML document: syntax and type errors name the key path and the line; unknown
@@ -225,6 +227,14 @@ pub fn load_str(
     overrides: &StudyOverrides,
 ) -> Result<Study, LoadError> {
     let mut file = parse(text).map_err(|e| e.in_document(origin))?;
+    // The study's own directory must stay below the current one; the command line's is the
+    // user's choice.
+    let access = speckle_scene::safe::Access {
+        inputs_outside: false,
+        output_outside: overrides.allow_outside || overrides.out.is_some(),
+    };
+    speckle_scene::safe::output_dir("output.dir", &file.output.dir, access)
+        .map_err(|e| LoadError::from(e).in_document(origin))?;
     let r = &mut file.render;
     r.paths = overrides.paths.unwrap_or(r.paths);
     r.seed = overrides.seed.unwrap_or(r.seed);

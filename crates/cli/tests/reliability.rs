@@ -1,0 +1,595 @@
+//! The classes of issue 14, reproduced through the binary as a user would, and fixed:
+//!
+//! 1. outputs are all-or-nothing: a failed or killed commit leaves the previous files byte for
+//!    byte and no temporary; the output directory and names are checked before rendering;
+//! 2. the first SIGINT (or SIGTERM) ends a long render within a second: optical depth 2000, the
+//!    closed-form mean (`ignored`: the wave solver at N = 19 000, in `validation/run`);
+//! 3. values whose products overflow exit 2 naming the field;
+//! 4. the resource guard refuses a PNG too large and an absurd time before rendering, and a
+//!    million pairs give a small sidecar (the pairs are in `.npy`);
+//! 5. files named by a scene: FIFOs, devices, files outside its folder are refused without
+//!    blocking or echoing; messages never carry terminal escapes;
+//! 6. errors name the field (dates, deep keys, huge amplitudes, byte-order marks).
+//!
+//! The timing tests assert "within one second" of the signal, as the issue asks; each takes a
+//! few seconds.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_speckle"))
+}
+
+fn speckle(dir: &Path, args: &[&str]) -> Output {
+    bin()
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .output()
+        .expect("the speckle binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A tiny scene: 2 plane waves, 6 far-field sensors (J = 12), PNGs.
+const TINY: &str = r#"
+name = "tiny"
+wavelength = 1.0
+[medium]
+size = [8.0, 8.0, 3.0]
+mean_free_path = 4.0
+[[sources]]
+type = "plane_tilts"
+tilts_deg = [0.0, 3.0]
+[[sensors]]
+type = "far_grid"
+theta_x_deg = [-5.0, 5.0]
+theta_y_deg = [-2.0, 2.0]
+nx = 3
+ny = 2
+[render]
+paths = 2000
+[output]
+dir = "res"
+"#;
+
+/// Every file of `dir`, with its bytes.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let bytes = std::fs::read(e.path()).unwrap_or_default();
+            (e.file_name().to_string_lossy().into_owned(), bytes)
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+fn names(snap: &[(String, Vec<u8>)]) -> Vec<&str> {
+    snap.iter().map(|(n, _)| n.as_str()).collect()
+}
+
+#[test]
+fn a_failed_commit_leaves_the_previous_files_and_no_temporary() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    let o = speckle(dir.path(), &["covariance", tiny, "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let before = snapshot(&res);
+    assert!(
+        names(&before).contains(&"tiny.cov.pairs.npy"),
+        "{:?}",
+        names(&before)
+    );
+    // A new run whose files cannot all be written: one name is now a directory (this used to
+    // rename the first files and stop, leaving a mix).
+    let blocked = res.join("tiny.mean.npy");
+    let mean = std::fs::read(&blocked).unwrap();
+    std::fs::remove_file(&blocked).unwrap();
+    std::fs::create_dir(&blocked).unwrap();
+    let o = speckle(dir.path(), &["covariance", tiny, "-q", "--seed", "9"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
+    std::fs::remove_dir(&blocked).unwrap();
+    std::fs::write(&blocked, mean).unwrap();
+    assert_eq!(snapshot(&res), before, "the previous files changed");
+
+    // A run killed in the middle of its renames (as by SIGKILL) leaves a mix for a while; the
+    // next run into the directory restores the previous files exactly before it does anything,
+    // here before it is cancelled.
+    let o = bin()
+        .args(["covariance", tiny, "-q", "--seed", "11"])
+        .env("SPECKLE_TEST_ABORT_AFTER_RENAMES", "3")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let mixed = snapshot(&res);
+    assert_ne!(mixed, before, "the abort came before any rename");
+    assert!(names(&mixed).iter().any(|n| n.starts_with(".speckle-")));
+    let o = speckle(
+        dir.path(),
+        &["covariance", tiny, "-q", "--cancel-after-paths", "1"],
+    );
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert_eq!(
+        snapshot(&res),
+        before,
+        "the killed commit was not rolled back"
+    );
+}
+
+#[test]
+fn the_output_directory_and_names_are_checked_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    write(dir.path(), "file", "x");
+    let start = Instant::now();
+    // A billion paths would take hours: the refusal comes first.
+    for out in ["file", "file/sub"] {
+        let o = speckle(
+            dir.path(),
+            &[
+                "covariance",
+                tiny,
+                "-q",
+                "--force",
+                "--paths",
+                "1000000000",
+                "--out",
+                out,
+            ],
+        );
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("output.dir: ") && stderr(&o).contains("not a directory"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    assert!(start.elapsed() < Duration::from_secs(10));
+    // A name too long for the file system is refused by `check`.
+    let long = TINY.replace(
+        "name = \"tiny\"",
+        &format!("name = \"{}\"", "n".repeat(245)),
+    );
+    let p = write(dir.path(), "long.toml", &long);
+    let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains(": name: "), "{}", stderr(&o));
+    // A scene may not write outside the current directory unless asked to.
+    for bad in ["/tmp/speckle-elsewhere", "../up"] {
+        let text = TINY.replace("dir = \"res\"", &format!("dir = \"{bad}\""));
+        let p = write(dir.path(), "out.toml", &text);
+        let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("output.dir: "), "{}", stderr(&o));
+        let o = speckle(
+            dir.path(),
+            &["check", p.to_str().unwrap(), "--allow-outside"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+}
+
+/// Starts `args` in `dir`, sends `signal` (or the comma-separated signals) after `wait`, and
+/// returns the exit code and the time from the signal to the exit.
+#[cfg(unix)]
+fn interrupt(dir: &Path, args: &[&str], signal: &str, wait: Duration) -> (Option<i32>, Duration) {
+    let mut child = bin()
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(wait);
+    assert!(child.try_wait().unwrap().is_none(), "{args:?} ended early");
+    let sent = Instant::now();
+    // `signal` may list several, sent one after the other ("-INT,-INT": a second ctrl-c).
+    for (k, s) in signal.split(',').enumerate() {
+        let kill = Command::new("kill")
+            .args([s, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success() || k > 0);
+    }
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return (s.code(), sent.elapsed());
+        }
+        if sent.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("{args:?} did not stop within 60 s of {signal}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// A slab of optical depth 2000 (10 wavelengths thick, mean free path 0.005): paths of about a
+/// million vertices; ten million of them would take days.
+const THICK: &str = r#"
+name = "thick"
+wavelength = 1.0
+[medium]
+size = [100.0, 100.0, 10.0]
+mean_free_path = 0.005
+[[sources]]
+type = "plane"
+direction = [0.0, 0.0, 1.0]
+[[sensors]]
+type = "far"
+direction = [0.0, 0.0, -1.0]
+[render]
+paths = 10000000
+[output]
+dir = "res"
+"#;
+
+#[cfg(unix)]
+#[test]
+fn the_first_sigint_ends_a_render_of_optical_depth_2000_within_a_second() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "thick.toml", THICK);
+    let p = p.to_str().unwrap();
+    // Days of work: refused without --force, naming what drives the time.
+    let o = speckle(dir.path(), &["covariance", p, "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("render.paths: this would take roughly"),
+        "{}",
+        stderr(&o)
+    );
+    for (command, signal) in [
+        ("covariance", "-INT"),
+        ("intensity", "-TERM"),
+        ("fields", "-INT"),
+        // A second ctrl-c exits at once, with the same code and no output.
+        ("covariance", "-INT,-INT"),
+    ] {
+        let (code, took) = interrupt(
+            dir.path(),
+            &[command, p, "-q", "--force"],
+            signal,
+            Duration::from_millis(1500),
+        );
+        assert_eq!(code, Some(130), "{command}");
+        assert!(
+            took < Duration::from_secs(1),
+            "{command}: {took:?} after {signal}"
+        );
+        assert!(!dir.path().join("res").exists(), "{command} wrote output");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn the_first_sigint_ends_the_closed_form_mean_within_a_second() {
+    let dir = tempfile::tempdir().unwrap();
+    // The backscatter example with 20 000 directions: minutes of quadrature.
+    let text = TINY.replace("nx = 3\nny = 2", "nx = 200\nny = 100");
+    let p = write(dir.path(), "mean.toml", &text);
+    let (code, took) = interrupt(
+        dir.path(),
+        &["mean", p.to_str().unwrap(), "-q", "--force"],
+        "-INT",
+        Duration::from_millis(1500),
+    );
+    assert_eq!(code, Some(130));
+    assert!(took < Duration::from_secs(1), "{took:?}");
+    assert!(!dir.path().join("res").exists());
+}
+
+/// The wave solver at N = 19 000 (a 5.8 GB matrix, minutes per configuration): SIGINT during
+/// the assembly and during the LU. Heavy: run by `validation/run`.
+#[cfg(unix)]
+#[test]
+#[ignore]
+fn the_first_sigint_ends_the_wave_solver_at_19000_scatterers_within_a_second() {
+    let dir = tempfile::tempdir().unwrap();
+    // n = sigma_s / (4 pi / k^2) = 0.1 pi per cubic wavelength at mfp 10; |V| = 19 000 / n.
+    let side = (19_000.0 / (0.1 * std::f64::consts::PI)).cbrt();
+    let text = format!(
+        "name = \"w\"\nwavelength = 1.0\n[medium]\nsize = [{side}, {side}, {side}]\n\
+         mean_free_path = 10.0\n[[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 1.0]\n\
+         [[sensors]]\ntype = \"far\"\ndirection = [0.0, 0.0, 1.0]\n[render]\nconfigurations = 2\n"
+    );
+    let p = write(dir.path(), "w.toml", &text);
+    let p = p.to_str().unwrap();
+    for wait in [3, 40] {
+        let (code, took) = interrupt(
+            dir.path(),
+            &["wave", p, "-q", "--threads", "1", "--force"],
+            "-INT",
+            Duration::from_secs(wait),
+        );
+        assert_eq!(code, Some(130));
+        assert!(took < Duration::from_secs(1), "after {wait} s: {took:?}");
+        eprintln!("SIGINT after {wait} s: stopped in {took:?}");
+    }
+}
+
+#[test]
+fn overflowing_values_exit_2_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = TINY.replace("[output]\ndir = \"res\"", "");
+    let cases: Vec<(String, &str)> = vec![
+        (
+            base.replace("size = [8.0, 8.0, 3.0]", "size = [1e308, 4.0, 2.0]"),
+            "medium.size[0]: ",
+        ),
+        (
+            base.replace("wavelength = 1.0", "wavelength = 5e-324"),
+            "wavelength: ",
+        ),
+        (
+            base.replace("mean_free_path = 4.0", "sigma_s = 1e19"),
+            "medium.sigma_s: ",
+        ),
+        (
+            format!("{base}[[sensors]]\ntype = \"point\"\nposition = [0.0, 0.0, 1e308]\n"),
+            "sensors[1].position: ",
+        ),
+        (
+            format!("{base}[[sources]]\ntype = \"point\"\nposition = [0.0, 0.0, -1e308]\n"),
+            "sources[1].position: ",
+        ),
+        // Found by the fuzzer: a subnormal component of a direction gave NaN intensities.
+        (
+            format!("{base}[[sensors]]\ntype = \"far\"\ndirection = [0.0, 5e-324, 1.0]\n"),
+            "sensors[1].direction[1]: ",
+        ),
+        (
+            format!(
+                "{base}[[sensors]]\ntype = \"point_grid\"\norigin = [0.0, 0.0, 5.0]\n\
+                 step_x = [1e308, 0.0, 0.0]\nstep_y = [0.0, 1.0, 0.0]\nnx = 3\nny = 2\n"
+            ),
+            "sensors[1].step_x: ",
+        ),
+        (
+            format!("{base}[[sensors]]\ntype = \"far_arc\"\nangles_deg = [-1e308, 1e308]\nn = 3\n"),
+            "sensors[1].angles_deg: ",
+        ),
+        (
+            base.replace(
+                "size = [8.0, 8.0, 3.0]",
+                "size = [8.0, 8.0, 3.0]\nhost_index = 1e-300",
+            ),
+            "medium.host_index: ",
+        ),
+        (
+            base.replace("paths = 2000", "paths = 2000\nwhen = 1979-05-27"),
+            "render.when: ",
+        ),
+        (
+            format!(
+                "render = 1979-05-27T07:32:00Z\n{}",
+                base.replace("[render]\npaths = 2000", "")
+            ),
+            "render: a TOML date or time",
+        ),
+        (
+            base.replace(
+                "[render]",
+                &format!("{} = 1\n[render]", vec!["a"; 200].join(".")),
+            ),
+            "a: ",
+        ),
+    ];
+    for (text, expect) in &cases {
+        let p = write(dir.path(), "o.toml", text);
+        let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{expect}: {}", stderr(&o));
+        assert!(stderr(&o).contains(expect), "{expect}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn the_guard_refuses_a_huge_png_and_a_million_pairs_give_a_small_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    // J = 1200 with png_scale = 64: a 76 800 x 76 800 image (5.9 GB) after the render.
+    let text = TINY
+        .replace("nx = 3\nny = 2", "nx = 600\nny = 1")
+        .replace("dir = \"res\"", "dir = \"res\"\npng_scale = 64");
+    let p = write(dir.path(), "png.toml", &text);
+    let start = Instant::now();
+    let o = speckle(dir.path(), &["covariance", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("output.png_scale: "), "{}", stderr(&o));
+    assert!(start.elapsed() < Duration::from_secs(10));
+    assert!(!dir.path().join("res").exists());
+
+    // A million pairs: the pair and sensor lists go to .npy, the JSON stays small.
+    let text = TINY.replace(
+        "type = \"far_grid\"\ntheta_x_deg = [-5.0, 5.0]\ntheta_y_deg = [-2.0, 2.0]\nnx = 3\nny = 2",
+        "type = \"far_arc\"\nangles_deg = [-60.0, 60.0]\nn = 500000",
+    );
+    let p = write(dir.path(), "million.toml", &text);
+    let o = speckle(
+        dir.path(),
+        &[
+            "intensity",
+            p.to_str().unwrap(),
+            "-q",
+            "--paths",
+            "2",
+            "--no-png",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let json = std::fs::metadata(res.join("tiny.intensity.json"))
+        .unwrap()
+        .len();
+    assert!(json < 64 * 1024, "sidecar of {json} bytes");
+    let pairs = std::fs::metadata(res.join("tiny.intensity.pairs.npy"))
+        .unwrap()
+        .len();
+    assert!(pairs >= 16 * 1_000_000, "{pairs}");
+}
+
+#[cfg(unix)]
+#[test]
+fn scene_files_cannot_read_devices_fifos_or_files_outside_their_folder() {
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("scenes");
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::write(root.path().join("secret.csv"), "TOP-SECRET-LINE,1,2\n").unwrap();
+    std::os::unix::fs::symlink("/etc/passwd", dir.join("link.csv")).unwrap();
+    assert!(
+        Command::new("mkfifo")
+            .arg(dir.join("fifo.csv"))
+            .status()
+            .unwrap()
+            .success()
+    );
+    let table = |file: &str| {
+        TINY.replace(
+            "[[sources]]",
+            &format!("[phase]\ntype = \"tabulated\"\nfile = \"{file}\"\n[[sources]]"),
+        )
+    };
+    let grid = |file: &str| {
+        TINY.replace(
+            "mean_free_path = 4.0",
+            &format!("sigma_s = 0.2\n[medium.grid]\nfile = \"{file}\"\nkind = \"density\""),
+        )
+    };
+    let cases = [
+        (table("fifo.csv"), "phase.file: ", "not a regular file"),
+        (
+            table("/dev/zero"),
+            "phase.file: ",
+            "outside the scene file's folder",
+        ),
+        (
+            table("/etc/passwd"),
+            "phase.file: ",
+            "outside the scene file's folder",
+        ),
+        (
+            table("../secret.csv"),
+            "phase.file: ",
+            "outside the scene file's folder",
+        ),
+        (
+            table("link.csv"),
+            "phase.file: ",
+            "outside the scene file's folder",
+        ),
+        (grid("fifo.csv"), "medium.grid.file: ", "not a regular file"),
+        (grid("/dev/zero"), "medium.grid.file: ", "outside"),
+    ];
+    for (text, field, why) in &cases {
+        let p = write(&dir, "s.toml", text);
+        let start = Instant::now();
+        let o = speckle(root.path(), &["check", p.to_str().unwrap()]);
+        assert!(start.elapsed() < Duration::from_secs(10), "{field} blocked");
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(field) && e.contains(why), "{field} {why}: {e}");
+        assert!(
+            !e.contains("TOP-SECRET") && !e.contains("root:"),
+            "echoed: {e}"
+        );
+    }
+    // Trusted (--allow-outside), a device is still refused and a file's contents are quoted as
+    // a short excerpt at most.
+    let p = write(&dir, "s.toml", &table("/dev/zero"));
+    let o = speckle(
+        root.path(),
+        &["check", p.to_str().unwrap(), "--allow-outside"],
+    );
+    assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+    let long = format!("{}\n", "TOP-SECRET-".repeat(20));
+    std::fs::write(root.path().join("secret.csv"), long).unwrap();
+    let p = write(&dir, "s.toml", &table("../secret.csv"));
+    let o = speckle(
+        root.path(),
+        &["check", p.to_str().unwrap(), "--allow-outside"],
+    );
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("TOP-SECRET") && !e.contains(&"TOP-SECRET-".repeat(5)),
+        "{e}"
+    );
+}
+
+#[test]
+fn messages_carry_no_terminal_escapes() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = TINY.replace(
+        "name = \"tiny\"",
+        "name = \"\u{1b}[2J\u{1b}]0;owned\u{7}x\"",
+    );
+    let p = write(dir.path(), "esc.toml", &text);
+    let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        !o.stderr.contains(&0x1b) && !o.stderr.contains(&0x07),
+        "{:?}",
+        stderr(&o)
+    );
+    assert!(stderr(&o).contains("\\u{1b}"), "{}", stderr(&o));
+}
+
+#[test]
+fn amplitude_tables_of_extreme_scale_and_with_a_byte_order_mark_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = |file: &str| {
+        TINY.replace(
+            "[[sources]]",
+            &format!("[phase]\ntype = \"tabulated\"\nfile = \"{file}\"\n[[sources]]"),
+        )
+    };
+    write(
+        dir.path(),
+        "big.csv",
+        "mu,re,im\n-1,2e200,0\n0,5e200,0\n1,1e201,0\n",
+    );
+    write(
+        dir.path(),
+        "small.csv",
+        "mu,re,im\n-1,2e-200,0\n0,5e-200,0\n1,1e-199,0\n",
+    );
+    write(dir.path(), "plain.csv", "mu,re,im\n-1,2,0\n0,5,0\n1,10,0\n");
+    write(
+        dir.path(),
+        "bom.csv",
+        "\u{feff}mu,re,im\n-1,2,0\n0,5,0\n1,10,0\n",
+    );
+    let mut summaries = Vec::new();
+    for f in ["plain.csv", "big.csv", "small.csv", "bom.csv"] {
+        let p = write(dir.path(), "t.toml", &table(f));
+        let o = speckle(dir.path(), &["check", p.to_str().unwrap()]);
+        assert!(o.status.success(), "{f}: {}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let g: String = out
+            .lines()
+            .filter_map(|l| l.split("(mean cosine").nth(1))
+            .collect();
+        summaries.push(g);
+    }
+    // The same normalised table whatever the scale.
+    assert!(
+        summaries.iter().all(|s| s == &summaries[0]),
+        "{summaries:?}"
+    );
+}

@@ -1,0 +1,492 @@
+//! Up-front estimates of what a command will cost (peak memory and a rough wall time), the
+//! limits of the outputs (PNG sizes, file counts), and the guard that refuses, before any work,
+//! what exceeds the machine.
+//!
+//! The times come from the speeds of one machine (a 2-core x86-64 with AVX-512, the figures of
+//! `docs/performance.md`) and a diffusion estimate of the vertices per path; they are meant to
+//! tell minutes from days, not to be exact. The guard ([`guard`]) refuses, naming the field that
+//! drives the cost, a command whose memory exceeds the machine's (`MemTotal`) or whose time
+//! exceeds [`MAX_SECONDS`]; `force` lets it through. Scenes whose paths are effectively endless
+//! ([`MAX_VERTICES_PER_PATH`]) are refused even then, unless `render.max_vertices` bounds them.
+
+use crate::SceneError;
+use crate::problem::Problem;
+use crate::validate::invalid;
+use speckle_medium::{AnyMedium, Dimension, Medium};
+use speckle_phase::PhaseFunction;
+
+/// Rough times above this (seconds) are refused without `force`: a day.
+pub const MAX_SECONDS: f64 = 86_400.0;
+
+/// Expected vertices per path above which paths are effectively endless (days per path, and
+/// free flights below the resolution of positions long before): refused, even with `force`,
+/// unless `render.max_vertices` bounds them.
+pub const MAX_VERTICES_PER_PATH: f64 = 1e10;
+
+/// Pixels of one PNG image at most (64 Mi: 64 MiB of gray levels before compression).
+pub const MAX_PNG_PIXELS: f64 = (1u64 << 26) as f64;
+
+/// PNG files of one command at most.
+pub const MAX_PNG_FILES: usize = 10_000;
+
+// Single-thread speeds of the reference machine (seconds per operation).
+/// A vertex: flight, roulette, direction, connection bookkeeping.
+const VERTEX_S: f64 = 1.5e-7;
+/// One endpoint leg of a connection (113 M/s).
+const LEG_S: f64 = 9e-9;
+/// One pair's product of legs, and its addition to a sum.
+const PAIR_S: f64 = 4e-9;
+/// One complex multiply-add of the rank-K covariance update (8 flops at 60 GFLOP/s).
+const MAC_S: f64 = 8.0 / 6e10;
+/// One point of the far-field mean quadrature.
+const QUADRATURE_S: f64 = 6e-8;
+
+/// What a command will cost.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    /// Peak memory, bytes (results, accumulators, staged output files, the medium).
+    pub bytes: f64,
+    /// The field that drives the memory (named when it is refused).
+    pub memory_field: String,
+    /// Rough wall time on the given threads, seconds.
+    pub seconds: f64,
+    /// The field that drives the time.
+    pub time_field: String,
+    /// Expected vertices per path (0 for commands that trace none).
+    pub vertices_per_path: f64,
+}
+
+/// `n` bytes in a unit a reader takes in at a glance.
+pub fn human_bytes(n: f64) -> String {
+    let mut v = n;
+    for unit in ["B", "KiB", "MiB", "GiB"] {
+        if v < 1024.0 {
+            return format!("{v:.0} {unit}");
+        }
+        v /= 1024.0;
+    }
+    format!("{v:.1} TiB")
+}
+
+/// `t` seconds in a unit a reader takes in at a glance.
+pub fn human_seconds(t: f64) -> String {
+    match t {
+        t if t < 1.0 => "under a second".to_string(),
+        t if t < 120.0 => format!("{t:.0} s"),
+        t if t < 7200.0 => format!("{:.0} min", t / 60.0),
+        t if t < 172_800.0 => format!("{:.1} h", t / 3600.0),
+        t if t < 3.2e9 => format!("{:.0} days", t / 86_400.0),
+        _ => "more than a century".to_string(),
+    }
+}
+
+impl Estimate {
+    /// One line: `about X of memory, roughly Y`.
+    pub fn describe(&self) -> String {
+        format!(
+            "about {} of memory, roughly {}",
+            human_bytes(self.bytes),
+            human_seconds(self.seconds)
+        )
+    }
+}
+
+/// The machine's memory in bytes (`MemTotal` of `/proc/meminfo`), when known.
+pub fn machine_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
+/// Refuses `e` when it exceeds the machine: memory above `memory` bytes (the machine's, when
+/// known) or a time above [`MAX_SECONDS`], unless `force`. The error names the field that
+/// drives the cost and says how to go ahead.
+pub fn guard(e: &Estimate, memory: Option<f64>, force: bool) -> Result<(), SceneError> {
+    if force {
+        return Ok(());
+    }
+    if let Some(m) = memory
+        && e.bytes > m
+    {
+        return Err(invalid(
+            &e.memory_field,
+            format!(
+                "this needs about {} of memory, more than this machine's {}; reduce it, or pass \
+                 --force to try anyway",
+                human_bytes(e.bytes),
+                human_bytes(m)
+            ),
+        ));
+    }
+    if e.seconds > MAX_SECONDS {
+        return Err(invalid(
+            &e.time_field,
+            format!(
+                "this would take roughly {} ({}); reduce it, or pass --force to run anyway",
+                human_seconds(e.seconds),
+                e.describe()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Expected vertices of a sub-path in a box of optical extents `taus` (one per axis), albedo
+/// and mean cosine `g`: a diffusion estimate of the steps before the walk leaves the box (the
+/// mean exit time `tau^2 (1 - g) / 4` of a slab of optical thickness `tau` from a uniform
+/// start, `/ 6` in flatland, the axes combined as parallel exits), cut by absorption
+/// (`1 / (1 - albedo)`) and by `max_vertices`.
+pub fn expected_vertices(
+    taus: &[f64],
+    albedo: f64,
+    g: f64,
+    dim: Dimension,
+    max_vertices: u32,
+) -> f64 {
+    let g = g.clamp(-1.0, 0.999);
+    let per_axis = match dim {
+        Dimension::Three => 4.0,
+        Dimension::Two => 6.0,
+    };
+    let exit_rate: f64 = taus
+        .iter()
+        .map(|t| per_axis / (t * t * (1.0 - g)).max(1e-300))
+        .sum();
+    let absorb = (1.0 - albedo).max(0.0);
+    let steps = 1.0 + 1.0 / (exit_rate + absorb);
+    steps.min(f64::from(max_vertices))
+}
+
+/// Rough seconds of `paths` paths of `vertices` vertices each connected to `legs` endpoints
+/// and `pairs` pairs, accumulating a `pairs x pairs` covariance, on one thread of the reference
+/// machine.
+pub fn covariance_seconds(paths: f64, vertices: f64, legs: f64, pairs: f64) -> f64 {
+    paths * vertices * (VERTEX_S + legs * LEG_S + pairs * PAIR_S + 0.5 * pairs * pairs * MAC_S)
+}
+
+/// The commands whose cost [`Problem::estimate`] knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// `speckle covariance`.
+    Covariance,
+    /// `speckle intensity`.
+    Intensity,
+    /// `speckle single`.
+    Single,
+    /// `speckle fields`.
+    Fields,
+    /// `speckle mean`.
+    Mean,
+}
+
+/// The optical extents of the medium along each axis, its albedo and its extinction, with a
+/// voxel grid taken at its mean extinction.
+fn optics(m: &AnyMedium) -> (Vec<f64>, f64) {
+    let size = m.bounds().size();
+    let dims = m.dimension().count() as usize;
+    let (sigma_t, albedo) = match m {
+        AnyMedium::Box(b) => (b.extinction(), b.scattering() / b.extinction()),
+        AnyMedium::Grid(g) => {
+            let (t, s) = (g.voxel_sigma_t(), g.voxel_sigma_s());
+            let n = t.len().max(1) as f64;
+            let (st, ss) = (t.iter().sum::<f64>(), s.iter().sum::<f64>());
+            (st / n, if st > 0.0 { ss / st } else { 0.0 })
+        }
+    };
+    let taus = (0..dims).map(|i| sigma_t * size[i]).collect();
+    (taus, albedo)
+}
+
+impl Problem {
+    /// Expected vertices of a sub-path in this scene ([`expected_vertices`]).
+    pub fn vertices_per_path(&self) -> f64 {
+        let m = self.scene.medium();
+        let (taus, albedo) = optics(m);
+        let g = self
+            .scene
+            .phases()
+            .iter()
+            .map(|p| p.mean_cosine())
+            .fold(-1.0, f64::max);
+        expected_vertices(
+            &taus,
+            albedo,
+            g,
+            m.dimension(),
+            self.render.sampling.max_vertices,
+        )
+    }
+
+    /// The field that sets the medium's extinction, as the scene file gives it.
+    fn extinction_field(&self) -> &'static str {
+        let m = &self.file.medium;
+        if m.grid.is_some() {
+            "medium.grid"
+        } else if m.particles.is_some() {
+            "medium.particles"
+        } else if m.mean_free_path.is_some() {
+            "medium.mean_free_path"
+        } else {
+            "medium.sigma_s"
+        }
+    }
+
+    /// Refuses paths that are effectively endless ([`MAX_VERTICES_PER_PATH`]) unless
+    /// `render.max_vertices` bounds them; names the field that sets the extinction.
+    pub fn check_path_length(&self) -> Result<f64, SceneError> {
+        let v = self.vertices_per_path();
+        if v > MAX_VERTICES_PER_PATH {
+            return Err(invalid(
+                self.extinction_field(),
+                format!(
+                    "the medium is so optically thick (optical extents {:?}) that a path would \
+                     scatter about {v:.1e} times before it leaves: it would never end; use a \
+                     thinner medium, or bound the paths with render.max_vertices (biased)",
+                    optics(self.scene.medium())
+                        .0
+                        .iter()
+                        .map(|t| format!("{t:.3e}"))
+                        .collect::<Vec<_>>()
+                ),
+            ));
+        }
+        Ok(v)
+    }
+
+    /// The pixel replication of a PNG of `width x height` values: `output.png_scale`, or the
+    /// smallest integer that makes the larger side at least 256 pixels (at most 16); refuses
+    /// images above [`MAX_PNG_PIXELS`], naming `output.png_scale` (or `output.png` when even
+    /// one pixel per value is too many).
+    pub fn png_scale(&self, width: usize, height: usize) -> Result<usize, SceneError> {
+        let scale = match self.output.png_scale {
+            Some(s) => s as usize,
+            None => 256usize.div_ceil(width.max(height).max(1)).clamp(1, 16),
+        };
+        let pixels = |s: usize| (width * s) as f64 * (height * s) as f64;
+        if pixels(scale) > MAX_PNG_PIXELS {
+            let (field, hint) = if scale > 1 && pixels(1) <= MAX_PNG_PIXELS {
+                ("output.png_scale", "use a smaller scale")
+            } else {
+                ("output.png", "set output.png = false (or --no-png)")
+            };
+            return Err(invalid(
+                field,
+                format!(
+                    "a {width} x {height} image at scale {scale} has {:.2e} pixels, more than \
+                     the limit of {MAX_PNG_PIXELS:.2e}; {hint}",
+                    pixels(scale)
+                ),
+            ));
+        }
+        Ok(scale)
+    }
+
+    /// The PNG files `command` would write (field images of `rows` realizations or
+    /// configurations): `(count, pixels in all)`; refuses too large images and too many files
+    /// (naming `output.png_scale`, `output.png_realizations`).
+    pub fn pngs(&self, command: Command, rows: usize) -> Result<(usize, f64), SceneError> {
+        if !self.output.png {
+            return Ok((0, 0.0));
+        }
+        let j = self.pairs();
+        match command {
+            Command::Covariance | Command::Single => {
+                let s = self.png_scale(j, j)?;
+                Ok((1, (j * s) as f64 * (j * s) as f64))
+            }
+            Command::Mean => Ok((0, 0.0)),
+            Command::Intensity | Command::Fields => {
+                let Some(g) = self.png_grid() else {
+                    return Ok((0, 0.0));
+                };
+                let s = self.png_scale(g.nx, g.ny)?;
+                let images = if command == Command::Fields {
+                    rows.min(self.output.png_realizations)
+                        .saturating_mul(self.n_sources())
+                } else {
+                    self.n_sources()
+                };
+                if images > MAX_PNG_FILES {
+                    let field = if command == Command::Fields {
+                        "output.png_realizations"
+                    } else {
+                        "output.png"
+                    };
+                    return Err(invalid(
+                        field,
+                        format!(
+                            "this would write {images} PNG images, more than the limit of \
+                             {MAX_PNG_FILES}"
+                        ),
+                    ));
+                }
+                let each = (g.nx * s) as f64 * (g.ny * s) as f64;
+                Ok((images, images as f64 * each))
+            }
+        }
+    }
+
+    /// Bytes of the medium's own data (a voxel grid's arrays).
+    fn medium_bytes(&self) -> f64 {
+        match self.scene.medium() {
+            AnyMedium::Box(_) => 0.0,
+            AnyMedium::Grid(g) => 28.0 * g.dims().iter().map(|&d| d as f64).product::<f64>(),
+        }
+    }
+
+    /// Bytes of the endpoint lists and pair list (the scene, and their `.npy` tables).
+    fn endpoint_bytes(&self) -> f64 {
+        let n = (self.n_sources() + self.n_sensors()) as f64;
+        n * (200.0 + 64.0) + self.pairs() as f64 * (16.0 + 16.0)
+    }
+
+    /// The cost of `command` on `threads` threads: checks the output sizes and the length of
+    /// the paths first (errors name the field), then estimates memory and time. The guard
+    /// ([`guard`]) decides whether to go ahead.
+    pub fn estimate(&self, command: Command, threads: usize) -> Result<Estimate, SceneError> {
+        let threads = threads.max(1) as f64;
+        let j = self.pairs() as f64;
+        let r = &self.render;
+        let rows = r.realizations;
+        let (_, png_pixels) = self.pngs(command, rows)?;
+        let legs = (self.n_sources() + self.n_sensors()) as f64;
+        let fixed = self.medium_bytes() + self.endpoint_bytes() + 2.0 * png_pixels;
+        let traced = matches!(
+            command,
+            Command::Covariance | Command::Intensity | Command::Fields
+        );
+        let vertices = if traced {
+            self.check_path_length()?
+        } else {
+            0.0
+        };
+        let per_vertex_connect = legs * LEG_S + j * PAIR_S;
+        let (bytes, memory_field, seconds, time_field) = match command {
+            Command::Covariance => {
+                // Accumulators of three estimates and the batches in flight, and five staged
+                // J x J arrays.
+                let square = 16.0 * j * j;
+                let bytes = square * (12.0 + 4.0 * threads) + 5.0 * square;
+                let per_path = vertices * (VERTEX_S + per_vertex_connect + 0.5 * j * j * MAC_S);
+                (bytes, "sensors", per_path * r.paths as f64, "render.paths")
+            }
+            Command::Single => {
+                let square = 16.0 * j * j;
+                let bytes = square * (4.0 + 2.0 * threads) + 2.0 * square;
+                let per_path = VERTEX_S + per_vertex_connect + 0.5 * j * j * MAC_S;
+                (bytes, "sensors", per_path * r.paths as f64, "render.paths")
+            }
+            Command::Intensity => {
+                let bytes = 16.0 * j * (8.0 + 4.0 * threads);
+                let per_path = vertices * (VERTEX_S + per_vertex_connect + 2.0 * j * PAIR_S);
+                (bytes, "sensors", per_path * r.paths as f64, "render.paths")
+            }
+            Command::Fields => {
+                // The fields, their intensities and the staged array.
+                let bytes = rows as f64 * j * (16.0 + 8.0 + 16.0) + 16.0 * j * threads;
+                let per_path = vertices * (VERTEX_S + per_vertex_connect);
+                let paths = rows as f64 * r.paths_per_realization as f64;
+                (
+                    bytes,
+                    "render.realizations",
+                    per_path * paths,
+                    "render.paths_per_realization",
+                )
+            }
+            Command::Mean => (
+                32.0 * j,
+                "sensors",
+                self.mean_seconds(),
+                if self.n_sensors() > 1 {
+                    "sensors"
+                } else {
+                    "medium.size"
+                },
+            ),
+        };
+        Ok(Estimate {
+            bytes: bytes + fixed,
+            memory_field: memory_field.to_string(),
+            seconds: seconds / threads,
+            time_field: time_field.to_string(),
+            vertices_per_path: vertices,
+        })
+    }
+
+    /// Seconds of the closed-form means on one thread: the far-field to far-field pairs of a
+    /// plane wave integrate over the box faces with up to `(512 * 4)^2` points per face.
+    fn mean_seconds(&self) -> f64 {
+        let m = self.scene.medium();
+        let size = m.bounds().size();
+        let k = self.scene.wavenumber();
+        let sigma_t = m.uniform_sigma_t().unwrap_or(0.0);
+        let rate = 2.0 * k + sigma_t;
+        let dims = m.dimension().count() as usize;
+        let points_per_axis: Vec<f64> = (0..dims)
+            .map(|i| 4.0 * (size[i] * rate).ceil().clamp(48.0, 512.0))
+            .collect();
+        // Each face is a rule over the other axes.
+        let per_pair: f64 = (0..dims)
+            .map(|axis| {
+                (0..dims)
+                    .filter(|&a| a != axis)
+                    .map(|a| points_per_axis[a])
+                    .product::<f64>()
+            })
+            .sum();
+        let far_pairs = self
+            .scene
+            .pairs()
+            .iter()
+            .filter(|p| {
+                matches!(
+                    (
+                        self.scene.sources()[p.source],
+                        self.scene.sensors()[p.sensor]
+                    ),
+                    (
+                        speckle_endpoints::Source::PlaneWave { .. },
+                        speckle_endpoints::Sensor::FarField { .. }
+                    )
+                )
+            })
+            .count() as f64;
+        far_pairs * per_pair * QUADRATURE_S + self.pairs() as f64 * 1e-6
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn human_units() {
+        assert_eq!(human_bytes(512.0), "512 B");
+        assert_eq!(human_bytes(3.0 * 1024.0 * 1024.0 * 1024.0), "3 GiB");
+        assert_eq!(human_seconds(0.5), "under a second");
+        assert_eq!(human_seconds(90.0), "90 s");
+        assert_eq!(human_seconds(3.0 * 86_400.0), "3 days");
+    }
+
+    #[test]
+    fn the_guard_refuses_what_exceeds_the_machine() {
+        let e = Estimate {
+            bytes: 2e9,
+            memory_field: "sensors".into(),
+            seconds: 10.0,
+            time_field: "render.paths".into(),
+            vertices_per_path: 5.0,
+        };
+        assert!(guard(&e, Some(4e9), false).is_ok());
+        let m = guard(&e, Some(1e9), false).unwrap_err().to_string();
+        assert!(m.starts_with("sensors: this needs about 2 GiB"), "{m}");
+        assert!(guard(&e, Some(1e9), true).is_ok());
+        let slow = Estimate { seconds: 1e7, ..e };
+        let m = guard(&slow, None, false).unwrap_err().to_string();
+        assert!(
+            m.starts_with("render.paths: this would take roughly 116 days"),
+            "{m}"
+        );
+    }
+}
