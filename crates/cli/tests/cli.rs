@@ -2,30 +2,11 @@
 //! and exit code 2, renders write loadable `.npy` and JSON files, and a cancelled render writes
 //! nothing.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Command;
 
-fn speckle(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_speckle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the speckle binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
+mod common;
+use common::*;
 
 /// A tiny valid scene: 2 plane waves, a 3 x 2 far-field image (J = 12).
 const TINY: &str = r#"

@@ -3,15 +3,10 @@
 //! `.npy` files, and phase mixtures. Bad input exits with code 2 and names the field.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn speckle(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_speckle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the speckle binary runs")
-}
+mod common;
+use common::*;
 
 fn text(o: &Output) -> String {
     format!(

@@ -5,26 +5,10 @@
 //! Run time (release, 2 cores): about 3 s once built, most of it the optical-depth-10 render of
 //! `small_particles_at_high_od_follow_the_diffusion_curve`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-fn speckle(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_speckle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the speckle binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
+mod common;
+use common::*;
 
 /// The shape and the numbers of a float64 `.npy` file.
 fn load_f8(path: &Path) -> (Vec<usize>, Vec<f64>) {
