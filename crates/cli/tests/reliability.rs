@@ -335,6 +335,23 @@ fn overflowing_values_exit_2_naming_the_field() {
             format!("{base}[[sensors]]\ntype = \"far\"\ndirection = [0.0, 5e-324, 1.0]\n"),
             "sensors[1].direction[1]: ",
         ),
+        // Found by the fuzzer: a tilt of 1e-300 degrees gave a NaN mean; generated directions
+        // follow the same rule, naming the angle.
+        (
+            base.replace("tilts_deg = [0.0, 3.0]", "tilts_deg = [0.0, 1e-300]"),
+            "sources[0].tilts_deg[1]: ",
+        ),
+        (
+            base.replace(
+                "theta_x_deg = [-5.0, 5.0]",
+                "theta_x_deg = [-1e-300, 1e-300]",
+            ),
+            "sensors[0].theta_x_deg: ",
+        ),
+        (
+            format!("{base}[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0.0, 1e-300]\nn = 2\n"),
+            "sensors[1].angles_deg: ",
+        ),
         (
             format!(
                 "{base}[[sensors]]\ntype = \"point_grid\"\norigin = [0.0, 0.0, 5.0]\n\

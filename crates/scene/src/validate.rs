@@ -88,20 +88,26 @@ pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
 /// The smallest non-zero component of a direction, relative to its length.
 pub const MIN_COMPONENT: f64 = 1e-100;
 
+/// The index of a component of the unit vector `u` that is not zero but below
+/// [`MIN_COMPONENT`]: such a component makes differences of directions whose squares underflow,
+/// and NaN results.
+fn negligible_component(u: DVec3) -> Option<usize> {
+    (0..3).find(|&i| u[i] != 0.0 && u[i].abs() < MIN_COMPONENT)
+}
+
 /// A finite non-zero vector, normalised; a non-zero component below [`MIN_COMPONENT`] of its
 /// length is refused.
 pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     let d = vec3(field, v)?;
     let len = d.length();
     if len > 0.0 && len.is_finite() {
-        // A component that is not zero but negligible beside the others (5e-324 beside 1) gives
-        // differences of directions whose squares underflow, and NaN results: refused, not
-        // rounded to 0 behind the user's back.
-        if let Some(i) = (0..3).find(|&i| v[i] != 0.0 && (v[i] / len).abs() < MIN_COMPONENT) {
+        // Refused, not rounded to 0 behind the user's back.
+        if let Some(i) = negligible_component(d / len) {
             return Err(invalid(
                 format!("{field}[{i}]"),
                 format!(
-                    "{:e} is not zero but negligible beside the vector's length {len:e} (below                      {MIN_COMPONENT:e} of it), so products of it underflow; write 0",
+                    "{:e} is not zero but negligible beside the vector's length {len:e} (below \
+                     {MIN_COMPONENT:e} of it), so products of it underflow; write 0",
                     v[i]
                 ),
             ));
@@ -112,6 +118,24 @@ pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
             field,
             format!("must be a non-zero vector (got {v:?})"),
         ))
+    }
+}
+
+/// A direction that a generator (tilts, far grids, far arcs) computed from the angle in `field`:
+/// refused, naming that field, when a component is not zero but below [`MIN_COMPONENT`] (an
+/// angle such as 1e-300 degrees).
+pub fn generated_direction(field: &str, angle_deg: f64, u: DVec3) -> Result<DVec3, SceneError> {
+    match negligible_component(u) {
+        None => Ok(u),
+        Some(i) => Err(invalid(
+            field,
+            format!(
+                "{angle_deg:e} degrees gives a direction whose component {i} is {:e}: not zero \
+                 but below {MIN_COMPONENT:e}, so products of it underflow; use 0 or an angle of \
+                 ordinary size",
+                u[i]
+            ),
+        )),
     }
 }
 

@@ -10,7 +10,10 @@
 use super::MAX_ENDPOINTS;
 use crate::SceneError;
 use crate::schema::{SensorSpec, SourceSpec};
-use crate::validate::{direction, finite, flat_direction, invalid, outside, position};
+use crate::validate::{
+    MIN_COMPONENT, direction, finite, flat_direction, generated_direction, invalid, outside,
+    position,
+};
 use serde::Serialize;
 use speckle_endpoints::{Sensor, Source};
 use speckle_medium::{Aabb, DVec3, Dimension};
@@ -193,8 +196,9 @@ pub fn build_sources(
                     return Err(invalid(f("tilts_deg"), "at least one tilt is needed"));
                 }
                 for (k, t) in tilts_deg.iter().enumerate() {
-                    let t = finite(format!("{}[{k}]", f("tilts_deg")), *t)?;
-                    let v = rotated(d, a, t, dim);
+                    let field = format!("{}[{k}]", f("tilts_deg"));
+                    let t = finite(&field, *t)?;
+                    let v = generated_direction(&field, t, rotated(d, a, t, dim))?;
                     out.push(Source::PlaneWave { direction: v });
                     desc.push(EndpointInfo {
                         tilt_deg: Some(t),
@@ -314,6 +318,13 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                         let tx = lerp(*theta_x_deg, ix, *nx);
                         let v = (e1 * tx.to_radians().tan() + e2 * ty.to_radians().tan() + c)
                             .normalize();
+                        let tiny = |t: f64| t != 0.0 && t.to_radians().tan().abs() < MIN_COMPONENT;
+                        let (key, t) = if tiny(tx) || !tiny(ty) {
+                            ("theta_x_deg", tx)
+                        } else {
+                            ("theta_y_deg", ty)
+                        };
+                        let v = generated_direction(&f(key), t, v)?;
                         out.push(Sensor::FarField { direction: v });
                         desc.push(EndpointInfo {
                             ix: Some(ix),
@@ -353,7 +364,7 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 }
                 for k in 0..*n {
                     let t = first + (last - first) * k as f64 / (*n - 1).max(1) as f64;
-                    let v = rotated(c, a, t, dim);
+                    let v = generated_direction(&f("angles_deg"), t, rotated(c, a, t, dim))?;
                     out.push(Sensor::FarField { direction: v });
                     desc.push(EndpointInfo {
                         k: Some(k),
