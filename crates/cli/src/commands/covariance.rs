@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::error;
-use speckle::estimators::{CovarianceOptions, EstimatorError, render_covariance};
+use speckle::estimators::{CovarianceEstimate, render_covariance};
 use speckle::scene::npy::encode_c16;
 
 /// Arguments of `covariance` and `intensity`.
@@ -33,15 +33,7 @@ impl Args {
     }
 }
 
-/// The options of a path-traced render (covariance, intensity, single scattering).
-pub fn options(p: &Problem) -> CovarianceOptions {
-    CovarianceOptions {
-        paths: p.render.paths,
-        seed: p.render.seed,
-        coherence: p.render.coherence,
-        sampling: p.render.sampling,
-    }
-}
+pub use speckle::runs::covariance_options as options;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
@@ -50,11 +42,20 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 
 /// Renders and writes the covariance of `p`.
 pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
-    let j = p.covariance_size(threads()).map_err(in_scene(p))?;
+    p.covariance_size(threads()).map_err(in_scene(p))?;
+    if let Some(s) = run.shard {
+        return shard(p, Kind::Covariance, s, run);
+    }
     let opts = options(p);
-    let ((est, mean), wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
-        Ok::<_, EstimatorError>((render_covariance(&p.scene, &opts, pr)?, means(p)?))
+    let (est, wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
+        render_covariance(&p.scene, &opts, pr)
     })?;
+    write(p, &est, wall)
+}
+
+/// Writes the covariance `est` of `p` (rendered, or merged from shards) and its mean.
+pub fn write(p: &Problem, est: &CovarianceEstimate, wall: f64) -> anyhow::Result<()> {
+    let (j, mean) = (p.pairs(), means(p).map_err(|e| error::estimator(e.into()))?);
     let n = &p.name;
     let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
@@ -93,7 +94,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     say!(
         "{n}: covariance of J = {j} pairs from {} paths in {wall:.2} s ({} threads); mean \
          diagonal {total_diag:.4e} (max relative stderr {:.2}%)",
-        opts.paths,
+        est.paths,
         threads(),
         100.0 * max_rel
     );

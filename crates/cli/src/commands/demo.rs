@@ -28,6 +28,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let run = RunOptions {
         quiet: a.quiet,
         cancel_after: None,
+        shard: None,
     };
     let start = Instant::now();
     covariance::render(&p, run)?;

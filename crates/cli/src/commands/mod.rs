@@ -10,6 +10,7 @@ pub mod fit_phase;
 pub mod intensity;
 pub mod mean;
 pub mod memory_spectrum;
+pub mod merge;
 pub mod mie;
 pub mod single;
 pub mod wave;
@@ -21,8 +22,10 @@ use crate::progress::{CliProgress, install_interrupt_handler, interrupted};
 use serde_json::{Value, json};
 use speckle::estimators::{CMatrix, MatrixEstimate};
 use speckle::phase::Complex64;
+use speckle::runs::{Kind, render_shard, work};
 use speckle::scene::build::endpoints::SensorGrid;
 use speckle::scene::{LoadError, Overrides, Problem, load_file};
+use speckle::stats::Shard;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -47,6 +50,10 @@ pub struct Common {
     /// `wave`) are done.
     #[arg(long, hide = true, value_name = "PATHS")]
     pub cancel_after_paths: Option<u64>,
+    /// Render only shard I of N of the run (a range of its batches, realizations or
+    /// configurations) into `<name>.<kind>.I-of-N.shard`, for `speckle merge`.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
 }
 
 impl Common {
@@ -67,6 +74,7 @@ impl Common {
         let run = RunOptions {
             quiet: self.quiet,
             cancel_after: self.cancel_after_paths,
+            shard: self.shard,
         };
         Ok((p, run))
     }
@@ -94,6 +102,8 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Testing aid: cancel as if ctrl-c was pressed once this many paths are done.
     pub cancel_after: Option<u64>,
+    /// Render only this shard.
+    pub shard: Option<Shard>,
 }
 
 impl RunOptions {
@@ -113,6 +123,27 @@ impl RunOptions {
         progress.finish();
         Ok((result.map_err(error)?, start.elapsed().as_secs_f64()))
     }
+}
+
+/// Renders shard `s` of `p`'s render of `kind` and writes it as `<name>.<kind>.<i>-of-<n>.shard`.
+pub fn shard(p: &Problem, kind: Kind, s: Shard, run: RunOptions) -> anyhow::Result<()> {
+    let (total, unit) = work(p, kind, Some(s));
+    let (file, wall) = run.timed(p, total, unit, crate::error::runs, |pr| {
+        render_shard(p, kind, s, pr)
+    })?;
+    let h = &file.header;
+    say!(
+        "{}: shard {s} of the {} ({} {:?} of {}) in {wall:.2} s ({} threads)",
+        p.name,
+        kind.command(),
+        kind.unit(),
+        h.units,
+        h.total,
+        threads()
+    );
+    let mut staged = Staged::new(p.out_dir());
+    staged.add(file.file_name(), file.to_bytes());
+    finish(staged)
 }
 
 /// A scene error of `p`, in its document (exit code 2).

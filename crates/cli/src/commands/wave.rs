@@ -6,7 +6,7 @@ use super::fields::{FieldImages, layout};
 use super::*;
 use crate::error;
 use speckle::scene::npy::encode_c16;
-use speckle::wave::{Kernel, WaveOptions, estimate_cost, number_density, render_wave};
+use speckle::wave::{Kernel, WaveEstimate, estimate_cost, number_density, render_wave};
 
 /// Arguments of `wave`.
 #[derive(Debug, clap::Args)]
@@ -54,8 +54,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let scene = p.box_scene()?;
     let rr = p.render.configurations;
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
-    let density = number_density(&scene).map_err(wave_error)?;
-    let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
+    number_density(&scene).map_err(wave_error)?;
+    p.covariance_size(threads()).map_err(in_scene(&p))?;
     p.field_rows_size(rr, "render.configurations")
         .map_err(in_scene(&p))?;
     if !run.quiet {
@@ -71,16 +71,26 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             human_seconds(cost.seconds)
         );
     }
-    let opts = WaveOptions {
-        configurations: rr,
-        seed: p.render.seed,
-    };
+    if let Some(s) = run.shard {
+        return shard(&p, Kind::Wave, s, run);
+    }
+    let opts = speckle::runs::wave_options(&p);
     let (est, wall) = run.timed(&p, rr as u64, "configurations", wave_error, |pr| {
         render_wave(&scene, &opts, pr)
     })?;
+    write(&p, &est, wall)
+}
+
+/// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
+pub fn write(p: &Problem, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
+    let wave_error = |e| error::wave(e, &p.origin);
+    let scene = p.box_scene()?;
+    let (j, rr) = (p.pairs(), p.render.configurations);
+    let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
+    let density = number_density(&scene).map_err(wave_error)?;
     let n = &p.name;
     let cov = &est.covariance;
-    let (fields_shape, fields_layout) = layout(&p, rr, "configuration");
+    let (fields_shape, fields_layout) = layout(p, rr, "configuration");
     let mut staged = Staged::new(p.out_dir());
     let mut files = json!({
         "layout": format!(
@@ -107,7 +117,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     ];
     stage_arrays(&mut staged, &mut files, n, arrays);
     stage_magnitude_png(
-        &p,
+        p,
         &mut staged,
         &mut files,
         &cov.value,
@@ -115,13 +125,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     )?;
     let naming = "<name>.wave.r{configuration}.s{source}.png";
     let stem = format!("{n}.wave");
-    let images = FieldImages::new(&p, est.fields.as_slice(), &stem, naming, &mut staged)?;
+    let images = FieldImages::new(p, est.fields.as_slice(), &stem, naming, &mut staged)?;
     if let Some(png) = images.png.clone() {
         files["field_png"] = png;
     }
     let diag = mean_diagonal(&cov.value);
     let counts = &est.scatterer_counts;
-    let mut summary = images.summary(&p);
+    let mut summary = images.summary(p);
     for (key, v) in [
         ("mean_diagonal", json!(diag)),
         (
@@ -146,7 +156,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                    each configuration of resonant, lossless, isotropic point scatterers placed \
                    uniformly in the box, their number Poisson with mean n |V|",
         "configurations": rr,
-        "seed": opts.seed,
+        "seed": p.render.seed,
         "streams": "configuration r draws from the counter-based stream (seed, r)",
         "expected_scatterers": est.expected_scatterers,
         "mean_scatterers": est.mean_scatterers,

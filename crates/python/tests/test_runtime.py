@@ -1,0 +1,66 @@
+"""Renders release the GIL (another Python thread runs meanwhile) and honour ctrl-c (SIGINT
+raises KeyboardInterrupt within a second and the process is still usable). Run time: about 5 s."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+
+import speckle
+
+
+def test_the_gil_is_released_during_a_render():
+    scene = speckle.Scene.example("default", paths=300_000)
+    ticks = 0
+    done = threading.Event()
+
+    def count():
+        nonlocal ticks
+        while not done.is_set():
+            ticks += 1
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    start = time.perf_counter()
+    speckle.intensity(scene)
+    wall = time.perf_counter() - start
+    done.set()
+    t.join()
+    # The counter thread runs about once a millisecond while the render holds no GIL.
+    assert wall > 0.2, wall
+    assert ticks > 0.2 * wall * 1000, (ticks, wall)
+
+
+def test_ctrl_c_interrupts_a_render():
+    code = textwrap.dedent(
+        """
+        import sys, time, speckle
+        scene = speckle.Scene.example("default", paths=10**10)
+        print("rendering", flush=True)
+        try:
+            speckle.covariance(scene)
+        except KeyboardInterrupt:
+            t = time.perf_counter()
+            print("interrupted", flush=True)
+            # The interpreter is still usable: a small render runs.
+            r = speckle.mean(scene)
+            print("after", r.mean.shape, flush=True)
+            sys.exit(3)
+        """
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert p.stdout.readline().strip() == "rendering"
+    time.sleep(1.5)
+    sent = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=30)
+    waited = time.perf_counter() - sent
+    assert p.returncode == 3, (out, err)
+    assert "interrupted" in out and "after (512,)" in out, (out, err)
+    assert waited < 5.0, waited
