@@ -249,7 +249,8 @@ impl ShardFile {
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, RunError> {
         let mut r = bytes;
         let (header, desc) = read_header(&mut r, path)?;
-        decode_payload(header, &desc, &mut r, r.len() as u64, path)
+        let available = r.len() as u64;
+        decode_payload(header, &desc, &mut r, available, path)
     }
 
     /// Reads a shard file.

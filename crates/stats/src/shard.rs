@@ -327,8 +327,11 @@ mod tests {
         mixed.extend(split(3, 128, &[0, 2]));
         let e = order(&mixed, 128, "batches").unwrap_err();
         assert!(e.to_string().contains("overlap"), "{e}");
-        // More shards than units: the empty ones are not needed.
-        assert!(order(&split(7, 3, &[0, 2, 4]), 3, "configurations").is_ok());
+        // More shards than units: shards 0, 1, 3 and 5 of 7 of 3 units are empty and not
+        // needed; a missing non-empty one is named.
+        assert!(order(&split(7, 3, &[0, 1, 3, 5]), 3, "configurations").is_ok());
+        let e = order(&split(7, 3, &[0, 4]), 3, "configurations").unwrap_err();
+        assert!(e.to_string().starts_with("shard 4/7 is missing"), "{e}");
         assert!(matches!(order(&[], 3, "x"), Err(ShardError::NoShards)));
     }
 }
