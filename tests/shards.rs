@@ -13,9 +13,7 @@
 //! Run time (release, 2 cores): about 10 s.
 
 use speckle::estimators::{CovarianceEstimate, MatrixEstimate, NoProgress};
-use speckle::runs::{
-    Kind, Outcome, RunError, ShardFile, merge, merge_files, render, render_shard,
-};
+use speckle::runs::{Kind, Outcome, RunError, ShardFile, merge, merge_files, render, render_shard};
 use speckle::scene::{Overrides, Problem, load_file, load_str};
 use speckle::stats::{Shard, ShardError};
 use std::path::{Path, PathBuf};
@@ -193,7 +191,10 @@ fn a_missing_shard_is_named_and_rendering_it_alone_completes_the_merge() {
             }
             _ => panic!("{kind:?}: {e}"),
         }
-        assert!(e.to_string().starts_with("shards 3/7, 5/7 are missing"), "{e}");
+        assert!(
+            e.to_string().starts_with("shards 3/7, 5/7 are missing"),
+            "{e}"
+        );
         shards.push(shard(&p, kind, 5, 7, 1));
         let e = merge(shards.clone(), &over).unwrap_err();
         assert!(e.to_string().starts_with("shard 3/7 is missing"), "{e}");
@@ -233,15 +234,24 @@ fn shards_of_other_runs_overlapping_shards_and_damaged_files_are_refused() {
     let e = error_of(vec![a.clone(), shard(&paths, Kind::Covariance, 1, 2, 2)]);
     assert!(e.contains("different scenes or render settings"), "{e}");
     let e = error_of(vec![a.clone(), shard(&p, Kind::Intensity, 1, 2, 2)]);
-    assert!(e.contains("different renders (intensity and covariance)"), "{e}");
+    assert!(
+        e.contains("different renders (intensity and covariance)"),
+        "{e}"
+    );
     let e = error_of(vec![a.clone(), shard(&p, Kind::Covariance, 1, 3, 2)]);
-    assert!(e.contains("shards 0/2 (batches 0..63) and 1/3 (batches 42..84) overlap"), "{e}");
+    assert!(
+        e.contains("shards 0/2 (batches 0..63) and 1/3 (batches 42..84) overlap"),
+        "{e}"
+    );
     let e = error_of(vec![a.clone(), a.clone()]);
     assert!(e.contains("overlap"), "{e}");
     // Damaged files.
     let bytes = a.to_bytes();
     let e = ShardFile::from_bytes(&bytes[..bytes.len() - 8], Path::new("x.shard")).unwrap_err();
-    assert!(e.to_string().starts_with("x.shard: truncated or damaged"), "{e}");
+    assert!(
+        e.to_string().starts_with("x.shard: truncated or damaged"),
+        "{e}"
+    );
     let e = ShardFile::from_bytes(b"not a shard at all, really", Path::new("y")).unwrap_err();
     assert_eq!(e.to_string(), "y: not a speckle shard file");
     assert!(matches!(error_of(vec![]).as_str(), "no shards to merge"));

@@ -159,7 +159,20 @@ fn a_missing_shard_is_named_and_rendering_it_completes_the_merge() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("tiny.toml"), TINY).unwrap();
-    let shard = |i: usize| ok(d, &["covariance", "tiny.toml", "--shard", &format!("{i}/7"), "--out", "s", "-q"]);
+    let shard = |i: usize| {
+        ok(
+            d,
+            &[
+                "covariance",
+                "tiny.toml",
+                "--shard",
+                &format!("{i}/7"),
+                "--out",
+                "s",
+                "-q",
+            ],
+        )
+    };
     for i in [0, 1, 2, 4, 6] {
         shard(i);
     }
@@ -181,7 +194,17 @@ fn a_missing_shard_is_named_and_rendering_it_completes_the_merge() {
     // A cancelled shard writes nothing: the merge still names it.
     let o = speckle(
         d,
-        &["covariance", "tiny.toml", "--shard", "3/7", "--out", "s", "-q", "--cancel-after-paths", "1"],
+        &[
+            "covariance",
+            "tiny.toml",
+            "--shard",
+            "3/7",
+            "--out",
+            "s",
+            "-q",
+            "--cancel-after-paths",
+            "1",
+        ],
     );
     assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
     assert_eq!(shard_files(&d.join("s")).len(), 5);
@@ -189,7 +212,17 @@ fn a_missing_shard_is_named_and_rendering_it_completes_the_merge() {
     shard(5);
     let o = merge();
     assert!(o.status.success(), "{}", stderr(&o));
-    ok(d, &["covariance", "tiny.toml", "--out", "single", "-q", "--no-png"]);
+    ok(
+        d,
+        &[
+            "covariance",
+            "tiny.toml",
+            "--out",
+            "single",
+            "-q",
+            "--no-png",
+        ],
+    );
     for name in ["tiny.cov.npy", "tiny.cov_stderr.npy", "tiny.cov_single.npy"] {
         assert!(
             std::fs::read(d.join("m").join(name)).unwrap()
@@ -209,18 +242,50 @@ fn bad_shard_specifications_and_shards_of_other_runs_exit_with_2() {
         assert_eq!(o.status.code(), Some(2), "{bad}: {}", stderr(&o));
         assert!(stderr(&o).contains("shard"), "{}", stderr(&o));
     }
-    ok(d, &["covariance", "tiny.toml", "--shard", "0/2", "--out", "a", "-q"]);
-    ok(d, &["covariance", "tiny.toml", "--shard", "1/2", "--seed", "6", "--out", "b", "-q"]);
+    ok(
+        d,
+        &[
+            "covariance",
+            "tiny.toml",
+            "--shard",
+            "0/2",
+            "--out",
+            "a",
+            "-q",
+        ],
+    );
+    ok(
+        d,
+        &[
+            "covariance",
+            "tiny.toml",
+            "--shard",
+            "1/2",
+            "--seed",
+            "6",
+            "--out",
+            "b",
+            "-q",
+        ],
+    );
     let (a, b) = (&shard_files(&d.join("a"))[0], &shard_files(&d.join("b"))[0]);
     let o = speckle(d, &["merge", a, b, "--out", "m"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("different seeds (6 and 5)"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("different seeds (6 and 5)"),
+        "{}",
+        stderr(&o)
+    );
     let o = speckle(d, &["merge", a, a, "--out", "m"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("overlap"), "{}", stderr(&o));
     std::fs::write(d.join("junk.shard"), b"not a shard").unwrap();
     let o = speckle(d, &["merge", "junk.shard"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("not a speckle shard file"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a speckle shard file"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!d.join("m").exists());
 }

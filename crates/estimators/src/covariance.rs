@@ -207,7 +207,14 @@ pub fn render_covariance_shard<M: Medium, P: PhaseFunction>(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<CovarianceShard, EstimatorError> {
-    shard_of(render_run(scene, options, &NoFactor, false, Some(shard), progress)?)
+    shard_of(render_run(
+        scene,
+        options,
+        &NoFactor,
+        false,
+        Some(shard),
+        progress,
+    )?)
 }
 
 /// Renders shard `shard` of [`render_intensity`] (see [`render_covariance_shard`]).
@@ -217,7 +224,14 @@ pub fn render_intensity_shard<M: Medium, P: PhaseFunction>(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<CovarianceShard, EstimatorError> {
-    shard_of(render_run(scene, options, &NoFactor, true, Some(shard), progress)?)
+    shard_of(render_run(
+        scene,
+        options,
+        &NoFactor,
+        true,
+        Some(shard),
+        progress,
+    )?)
 }
 
 /// One shard of a covariance or intensity render: the sums of its batches of the single
@@ -239,11 +253,8 @@ impl CovarianceShard {
             .iter()
             .map(|s| (s.moments.shard, s.moments.units.clone()))
             .collect();
-        let order = speckle_stats::shard::order(
-            &ranges,
-            first.moments.spec.batches().count(),
-            "batches",
-        )?;
+        let order =
+            speckle_stats::shard::order(&ranges, first.moments.spec.batches().count(), "batches")?;
         let mut merge = CovarianceMerge::new(&first.moments.spec);
         for k in order {
             merge.add(&shards[k])?;

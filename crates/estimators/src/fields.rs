@@ -180,9 +180,10 @@ impl FieldShard {
         let rows: Vec<PartialRows> = shards.iter().map(|s| s.rows.clone()).collect();
         let (fields, order) = assemble_rows(&rows, "realizations")?;
         let first = &shards[order[0]];
-        if shards.iter().any(|s| {
-            s.mean != first.mean || s.paths_per_realization != first.paths_per_realization
-        }) {
+        if shards
+            .iter()
+            .any(|s| s.mean != first.mean || s.paths_per_realization != first.paths_per_realization)
+        {
             return Err(ShardError::Mismatch(
                 "the shards are of field renders with different means or paths per realization"
                     .into(),

@@ -124,7 +124,10 @@ fn overrides(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Override
                 Some(format!("render.{key}")),
             )
         };
-        let count = || v.extract::<u64>().map_err(|_| bad("a non-negative integer"));
+        let count = || {
+            v.extract::<u64>()
+                .map_err(|_| bad("a non-negative integer"))
+        };
         let flag = || v.extract::<bool>().map_err(|_| bad("True or False"));
         match key.as_str() {
             "paths" => o.paths = Some(count()?),
@@ -150,7 +153,13 @@ fn overrides(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Override
 /// path, for errors.
 fn to_toml(v: &Bound<'_, PyAny>, path: &str) -> PyResult<Option<toml::Value>> {
     let py = v.py();
-    let named = |p: &str| if p.is_empty() { "the scene".to_string() } else { p.to_string() };
+    let named = |p: &str| {
+        if p.is_empty() {
+            "the scene".to_string()
+        } else {
+            p.to_string()
+        }
+    };
     let bad = |why: String| scene_error(py, format!("{}: {why}", named(path)), Some(named(path)));
     if v.is_none() {
         return Ok(None);
@@ -268,7 +277,10 @@ impl PyProblem {
         if !scene.is_instance_of::<PyDict>() {
             return Err(scene_error(
                 py,
-                format!("a scene dict is needed (got a {})", scene.get_type().name()?),
+                format!(
+                    "a scene dict is needed (got a {})",
+                    scene.get_type().name()?
+                ),
                 None,
             ));
         }
@@ -300,14 +312,18 @@ impl PyProblem {
             )
         })?;
         let origin = format!("<embedded {name}>");
-        let p =
-            load_str(text, &origin, Path::new("."), name, &o).map_err(|e| load_error(py, &e, false))?;
+        let p = load_str(text, &origin, Path::new("."), name, &o)
+            .map_err(|e| load_error(py, &e, false))?;
         Ok(Self { p })
     }
 
     /// The same scene with other render settings (validated again).
     #[pyo3(signature = (overrides=None))]
-    fn with_overrides(&self, py: Python<'_>, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+    fn with_overrides(
+        &self,
+        py: Python<'_>,
+        overrides: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
         let o = self::overrides(py, overrides)?;
         let mut file = self.p.file.clone();
         o.apply(&mut file);
@@ -498,9 +514,16 @@ fn outcome_dict<'py>(py: Python<'py>, p: &Problem, o: &Outcome) -> PyResult<Boun
     d.set_item("kind", o.kind().command())?;
     match o {
         Outcome::Covariance(e) => {
-            for (key, m) in [("cov", &e.total), ("cov_single", &e.single), ("cov_multiple", &e.multiple)] {
+            for (key, m) in [
+                ("cov", &e.total),
+                ("cov_single", &e.single),
+                ("cov_multiple", &e.multiple),
+            ] {
                 d.set_item(key, c16(py, m.value.as_slice(), &[j, j])?)?;
-                d.set_item(format!("{key}_stderr"), c16(py, m.std_error.as_slice(), &[j, j])?)?;
+                d.set_item(
+                    format!("{key}_stderr"),
+                    c16(py, m.std_error.as_slice(), &[j, j])?,
+                )?;
             }
             let (mean, warning) = p.means_or_nan().map_err(|e| run_error(py, e.into()))?;
             d.set_item("mean", c16(py, &mean, &[j])?)?;
@@ -514,7 +537,10 @@ fn outcome_dict<'py>(py: Python<'py>, p: &Problem, o: &Outcome) -> PyResult<Boun
                 ("intensity_multiple", &e.multiple),
             ] {
                 d.set_item(key, f8(py, m.value.as_slice(), &shape)?)?;
-                d.set_item(format!("{key}_stderr"), f8(py, m.std_error.as_slice(), &shape)?)?;
+                d.set_item(
+                    format!("{key}_stderr"),
+                    f8(py, m.std_error.as_slice(), &shape)?,
+                )?;
             }
             d.set_item("paths", e.paths)?;
         }
@@ -572,10 +598,14 @@ fn single<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
     let t = threads.unwrap_or_else(rayon::current_num_threads);
-    let j = p.covariance_size(t).map_err(|e| run_error(py, p.in_document(e).into()))?;
+    let j = p
+        .covariance_size(t)
+        .map_err(|e| run_error(py, p.in_document(e).into()))?;
     let opts = runs::covariance_options(p);
-    let e = interruptible(py, threads, |pr| render_single_scattering(&p.scene, &opts, pr))?
-        .map_err(|e| run_error(py, e.into()))?;
+    let e = interruptible(py, threads, |pr| {
+        render_single_scattering(&p.scene, &opts, pr)
+    })?
+    .map_err(|e| run_error(py, e.into()))?;
     let d = PyDict::new(py);
     d.set_item("kind", "single")?;
     d.set_item("single", c16(py, e.value.as_slice(), &[j, j])?)?;
@@ -609,7 +639,8 @@ impl PyShard {
     /// Reads a shard from the bytes of a shard file.
     #[staticmethod]
     fn from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<Self> {
-        let file = ShardFile::from_bytes(data, Path::new("<bytes>")).map_err(|e| run_error(py, e))?;
+        let file =
+            ShardFile::from_bytes(data, Path::new("<bytes>")).map_err(|e| run_error(py, e))?;
         Ok(Self { file })
     }
 
@@ -689,7 +720,9 @@ impl PyShard {
     }
 
     /// Pickling: by its file's bytes.
-    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
         let py = slf.py();
         let ctor = py.get_type::<PyShard>().getattr("from_bytes")?;
         Ok((ctor, (slf.get().to_bytes(py),)))

@@ -73,15 +73,15 @@ def _binary() -> Path:
     if env:
         return Path(env)
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    for profile in ("debug", "release"):
+    for profile in ("release", "debug"):
         p = target / profile / "speckle"
         if p.exists():
             return p
     cargo = shutil.which("cargo")
     if cargo is None:
         pytest.fail("no speckle binary (set SPECKLE_BIN, or build it with cargo)")
-    subprocess.run([cargo, "build", "-q", "-p", "speckle-cli"], cwd=ROOT, check=True)
-    return target / "debug" / "speckle"
+    subprocess.run([cargo, "build", "--release", "-q", "-p", "speckle-cli"], cwd=ROOT, check=True)
+    return target / "release" / "speckle"
 
 
 @pytest.fixture(scope="session")

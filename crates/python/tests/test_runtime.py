@@ -1,5 +1,5 @@
 """Renders release the GIL (another Python thread runs meanwhile) and honour ctrl-c (SIGINT
-raises KeyboardInterrupt within a second and the process is still usable). Run time: about 5 s."""
+raises KeyboardInterrupt within a second on an idle machine, and the process is still usable). Run time: about 5 s."""
 
 import os
 import signal
@@ -47,8 +47,8 @@ def test_ctrl_c_interrupts_a_render():
             t = time.perf_counter()
             print("interrupted", flush=True)
             # The interpreter is still usable: a small render runs.
-            r = speckle.mean(scene)
-            print("after", r.mean.shape, flush=True)
+            r = speckle.intensity(scene.with_settings(paths=2000))
+            print("after", r.intensity.shape, flush=True)
             sys.exit(3)
         """
     )
@@ -59,8 +59,11 @@ def test_ctrl_c_interrupts_a_render():
     time.sleep(1.5)
     sent = time.perf_counter()
     p.send_signal(signal.SIGINT)
-    out, err = p.communicate(timeout=30)
+    line = p.stdout.readline().strip()
     waited = time.perf_counter() - sent
+    out, err = p.communicate(timeout=60)
+    assert line == "interrupted", (line, out, err)
     assert p.returncode == 3, (out, err)
-    assert "interrupted" in out and "after (512,)" in out, (out, err)
+    assert "after (2, 256)" in out, (out, err)
+    # Within milliseconds on an idle machine; a generous bound for a loaded one.
     assert waited < 5.0, waited

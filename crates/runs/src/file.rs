@@ -304,7 +304,10 @@ fn read_header(r: &mut impl Read, path: &Path) -> Result<(Header, Desc), RunErro
         .map_err(|_| bad(path, "truncated header"))?;
     let json: Value =
         serde_json::from_slice(&text).map_err(|e| bad(path, format!("corrupt header: {e}")))?;
-    let field = |k: &str| json.get(k).ok_or_else(|| bad(path, format!("header lacks `{k}`")));
+    let field = |k: &str| {
+        json.get(k)
+            .ok_or_else(|| bad(path, format!("header lacks `{k}`")))
+    };
     let uint = |k: &str| {
         field(k)?
             .as_u64()
@@ -395,9 +398,12 @@ fn decode_payload(
 ) -> Result<ShardFile, RunError> {
     let d = &desc.json;
     let uint = |k: &str| {
-        d.get(k)
-            .and_then(Value::as_u64)
-            .ok_or_else(|| bad(path, format!("header `data.{k}` is missing or not an integer")))
+        d.get(k).and_then(Value::as_u64).ok_or_else(|| {
+            bad(
+                path,
+                format!("header `data.{k}` is missing or not an integer"),
+            )
+        })
     };
     let j = uint("j")? as usize;
     let rows = header.units.len();
@@ -413,7 +419,10 @@ fn decode_payload(
                 j,
                 layout,
                 parts: uint("parts")? as usize,
-                with_total: d.get("with_total").and_then(Value::as_bool).unwrap_or(false),
+                with_total: d
+                    .get("with_total")
+                    .and_then(Value::as_bool)
+                    .unwrap_or(false),
             };
             if spec.batches().count() != header.total {
                 return Err(bad(path, "the batch count does not match the path count"));
@@ -455,9 +464,7 @@ fn decode_payload(
                 units: header.units.clone(),
                 batches,
             };
-            moments
-                .check()
-                .map_err(|e| bad(path, e.to_string()))?;
+            moments.check().map_err(|e| bad(path, e.to_string()))?;
             ShardData::Moments(CovarianceShard { moments })
         }
         Ok(_) => {

@@ -64,7 +64,10 @@ mod tests {
     fn the_hash_changes_with_what_changes_the_numbers_only() {
         let base = run_hash(&problem(Overrides::default()), Kind::Covariance);
         assert_eq!(base.len(), 16);
-        assert_eq!(base, run_hash(&problem(Overrides::default()), Kind::Covariance));
+        assert_eq!(
+            base,
+            run_hash(&problem(Overrides::default()), Kind::Covariance)
+        );
         let other = |o: Overrides, k: Kind| run_hash(&problem(o), k);
         assert_ne!(base, other(Overrides::default(), Kind::Intensity));
         let seed = Overrides {

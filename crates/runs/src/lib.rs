@@ -237,12 +237,16 @@ pub fn check_size(p: &Problem, kind: Kind, threads: usize) -> Result<(), RunErro
 /// Renders the whole of `kind` for `p`.
 pub fn render(p: &Problem, kind: Kind, progress: &dyn Progress) -> Result<Outcome, RunError> {
     Ok(match kind {
-        Kind::Covariance => {
-            Outcome::Covariance(render_covariance(&p.scene, &covariance_options(p), progress)?)
-        }
-        Kind::Intensity => {
-            Outcome::Intensity(render_intensity(&p.scene, &covariance_options(p), progress)?)
-        }
+        Kind::Covariance => Outcome::Covariance(render_covariance(
+            &p.scene,
+            &covariance_options(p),
+            progress,
+        )?),
+        Kind::Intensity => Outcome::Intensity(render_intensity(
+            &p.scene,
+            &covariance_options(p),
+            progress,
+        )?),
         Kind::Fields => Outcome::Fields(render_fields(&p.scene, &field_options(p), progress)?),
         Kind::Wave => {
             let scene = p.box_scene().map_err(|e| p.in_document(e))?;

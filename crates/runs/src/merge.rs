@@ -107,7 +107,10 @@ fn merge_sources(
         .collect();
     let order = speckle_stats::shard::order(&ranges, first.total, kind.unit())?;
     let count = shards[0].0.shard.count;
-    let count = shards.iter().all(|(h, _)| h.shard.count == count).then_some(count);
+    let count = shards
+        .iter()
+        .all(|(h, _)| h.shard.count == count)
+        .then_some(count);
     let problem = rebuild(first, overrides)?;
     if run_hash(&problem, kind) != hash {
         return Err(mismatch(format!(

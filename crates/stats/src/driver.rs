@@ -187,9 +187,7 @@ where
             if !done {
                 return None;
             }
-            let (parts, total) = reduction
-                .finish()
-                .expect("a whole run reduces every batch");
+            let (parts, total) = reduction.finish().expect("a whole run reduces every batch");
             Some(MomentsRun::Estimate(parts, total))
         }
         Some(shard) => {
@@ -283,7 +281,10 @@ where
     W: Fn(usize) -> Option<T> + Sync,
     G: FnMut(usize, T) + Send,
 {
-    let Range { start: first, end: count } = items;
+    let Range {
+        start: first,
+        end: count,
+    } = items;
     let threads = rayon::current_num_threads().max(1);
     let by_memory = (MEMORY_BUDGET / 2 / bytes_per_item.max(1)).max(1);
     let chunk = (4 * threads).min(by_memory).max(1);

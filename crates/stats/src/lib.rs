@@ -26,15 +26,15 @@ pub mod shard;
 
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
 pub use driver::{
-    Batches, MomentsRun, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES,
-    batch_moments, for_each_path, run_moments, run_ordered, run_ordered_range,
+    Batches, MomentsRun, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES, batch_moments,
+    for_each_path, run_moments, run_ordered, run_ordered_range,
 };
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};
 pub use moments::{BatchSum, Buffers, Layout, Moments};
 pub use reduction::{BatchSums, MomentsReduction, MomentsSpec, PartialMoments};
-pub use shard::{PartialRows, Shard, ShardError, assemble_rows};
 pub use rng::PathRng;
+pub use shard::{PartialRows, Shard, ShardError, assemble_rows};
 
 /// Errors of the statistics layer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

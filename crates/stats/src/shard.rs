@@ -181,13 +181,25 @@ pub fn order(
             return Err(overlap(last.unwrap_or(k), k));
         }
         if r.start > next {
-            return Err(missing(shards, next..r.start, total, one_split.then_some(count), unit));
+            return Err(missing(
+                shards,
+                next..r.start,
+                total,
+                one_split.then_some(count),
+                unit,
+            ));
         }
         next = r.end;
         last = Some(k);
     }
     if next < total {
-        return Err(missing(shards, next..total, total, one_split.then_some(count), unit));
+        return Err(missing(
+            shards,
+            next..total,
+            total,
+            one_split.then_some(count),
+            unit,
+        ));
     }
     Ok(idx)
 }
@@ -206,7 +218,9 @@ fn missing(
             let given: std::collections::HashSet<usize> =
                 shards.iter().map(|s| s.0.index).collect();
             let missing = (0..n)
-                .filter(|&i| !given.contains(&i) && !Shard { index: i, count: n }.units(total).is_empty())
+                .filter(|&i| {
+                    !given.contains(&i) && !Shard { index: i, count: n }.units(total).is_empty()
+                })
                 .collect();
             (missing, n)
         }
@@ -287,7 +301,10 @@ mod tests {
 
     #[test]
     fn shard_specifications_are_parsed_and_checked() {
-        assert_eq!("3/7".parse::<Shard>().unwrap(), Shard { index: 3, count: 7 });
+        assert_eq!(
+            "3/7".parse::<Shard>().unwrap(),
+            Shard { index: 3, count: 7 }
+        );
         for bad in ["7/7", "1/0", "x/2", "3", "-1/2", ""] {
             let e = bad.parse::<Shard>().unwrap_err();
             assert!(e.to_string().starts_with("shard: "), "{e}");
@@ -315,7 +332,10 @@ mod tests {
         assert!(matches!(&e, ShardError::Missing { missing, count: 7, .. } if missing == &[3]));
         assert!(e.to_string().starts_with("shard 3/7 is missing"), "{e}");
         let e = order(&split(7, 128, &[0, 6]), 128, "batches").unwrap_err();
-        assert!(e.to_string().starts_with("shards 0/7, 6/7 are missing"), "{e}");
+        assert!(
+            e.to_string().starts_with("shards 0/7, 6/7 are missing"),
+            "{e}"
+        );
         // The same shard twice, or shards of two splits that overlap.
         let mut twice = split(3, 128, &[]);
         twice.push(twice[1].clone());
@@ -323,7 +343,10 @@ mod tests {
         assert!(matches!(e, ShardError::Overlap { .. }), "{e}");
         let mut mixed = split(2, 128, &[1]);
         mixed.extend(split(4, 128, &[0, 1]));
-        assert!(order(&mixed, 128, "batches").is_ok(), "0/2 + 2/4 + 3/4 tile the run");
+        assert!(
+            order(&mixed, 128, "batches").is_ok(),
+            "0/2 + 2/4 + 3/4 tile the run"
+        );
         mixed.extend(split(3, 128, &[0, 2]));
         let e = order(&mixed, 128, "batches").unwrap_err();
         assert!(e.to_string().contains("overlap"), "{e}");

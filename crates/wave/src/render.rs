@@ -179,16 +179,21 @@ fn render_rows(
         Some(solved)
     };
     let first = units.start;
-    let done = run_ordered_range(units.clone(), 16 * j, work, |c, solved: Solved| match solved {
-        Ok((u, n)) => {
-            let row = c - first;
-            fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
-            counts.push(n);
-        }
-        Err(e) => {
-            failure.get_or_insert(e);
-        }
-    });
+    let done = run_ordered_range(
+        units.clone(),
+        16 * j,
+        work,
+        |c, solved: Solved| match solved {
+            Ok((u, n)) => {
+                let row = c - first;
+                fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
+                counts.push(n);
+            }
+            Err(e) => {
+                failure.get_or_insert(e);
+            }
+        },
+    );
     if let Some(e) = failure {
         return Err(e);
     }

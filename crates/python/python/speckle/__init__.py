@@ -115,6 +115,8 @@ class Scene:
         voxel grids) are found in ``base`` (default: the current directory). ``settings``
         replace render settings (``paths=``, ``seed=``, ...).
         """
+        if not isinstance(scene, Mapping):
+            raise SceneError(f"a scene dict is needed (got a {type(scene).__name__})")
         base = Path.cwd() if base is None else Path(base).absolute()
         return cls(_speckle.Problem.from_dict(dict(scene), str(base), name, settings))
 
