@@ -17,6 +17,8 @@
 //! - [`estimators`]: speckle mean, covariance and field estimators;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
 //!   scatterers, averaged over random configurations);
+//! - [`runs`]: renders of a loaded problem, whole or as shards, shard files and their exact
+//!   merge;
 //! - [`studies`]: studies built on the renderers (the memory effect versus wavelength of
 //!   Fig. 11), with their figures.
 
@@ -28,6 +30,7 @@ pub use speckle_estimators as estimators;
 pub use speckle_medium as medium;
 pub use speckle_paths as paths;
 pub use speckle_phase as phase;
+pub use speckle_runs as runs;
 pub use speckle_scene as scene;
 pub use speckle_stats as stats;
 pub use speckle_studies as studies;

@@ -2,6 +2,7 @@
 //! anything else 1.
 
 use speckle::estimators::EstimatorError;
+use speckle::runs::RunError;
 use speckle::scene::safe::printable;
 use speckle::scene::tools::fit::FitError;
 use speckle::scene::{LoadError, SceneError};
@@ -57,6 +58,18 @@ pub fn wave(e: WaveError, origin: &str) -> anyhow::Error {
             };
             InputError(format!("{origin}: {field}: {reason}")).into()
         }
+        WaveError::Shard(e) => InputError(e.to_string()).into(),
+    }
+}
+
+/// A sharded render's or a merge's error: shards missing, overlapping, of other runs, or
+/// unreadable are bad input.
+pub fn runs(e: RunError) -> anyhow::Error {
+    match e {
+        RunError::Estimator(e) => estimator(e),
+        e if e.is_cancelled() => Cancelled.into(),
+        RunError::Load(e) => e.into(),
+        e => InputError(e.to_string()).into(),
     }
 }
 

@@ -90,6 +90,8 @@ enum Command {
     /// `speckle example fig11b_memory_large` print the two panels of Fig. 11), and writes
     /// `<name>.memory*.npy`, a JSON sidecar with the Mie figures and an SVG plot.
     MemorySpectrum(memory_spectrum::Args),
+    /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
+    Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
     Check(check::Args),
     /// Print an embedded example scene (TOML) to stdout.
@@ -109,6 +111,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mie(a) => mie::run(a),
         Command::FitPhase(a) => fit_phase::run(a),
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
+        Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),
         Command::Demo(a) => demo::run(a),

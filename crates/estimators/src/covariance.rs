@@ -9,7 +9,10 @@ use speckle_paths::{
     FactorValue, NoFactor, PathFactor, PathRng, Tracer, TracerConfig, Vertex, VertexSink,
 };
 use speckle_phase::PhaseFunction;
-use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
+use speckle_stats::{
+    BatchSum, Layout, MomentsReduction, MomentsRun, MomentsSpec, PartialMoments, Poll, Progress,
+    Shard, ShardError, batch_moments, run_moments,
+};
 
 /// Options of a covariance render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -195,6 +198,118 @@ pub fn render_intensity_with<M: Medium, P: PhaseFunction, F: PathFactor>(
     render(scene, options, factor, true, progress)
 }
 
+/// Renders shard `shard` of [`render_covariance`]: the batches of its range, each batch's own
+/// sums kept ([`speckle_stats::PartialMoments`]), so that [`CovarianceShard::merge`] of all
+/// shards is bitwise the single run's estimate, for any number of shards and threads.
+pub fn render_covariance_shard<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<CovarianceShard, EstimatorError> {
+    shard_of(render_run(
+        scene,
+        options,
+        &NoFactor,
+        false,
+        Some(shard),
+        progress,
+    )?)
+}
+
+/// Renders shard `shard` of [`render_intensity`] (see [`render_covariance_shard`]).
+pub fn render_intensity_shard<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<CovarianceShard, EstimatorError> {
+    shard_of(render_run(
+        scene,
+        options,
+        &NoFactor,
+        true,
+        Some(shard),
+        progress,
+    )?)
+}
+
+/// One shard of a covariance or intensity render: the sums of its batches of the single
+/// run's split. About `16 J (J + 1)` bytes per batch for a covariance (two parts, upper
+/// triangles), `32 J` for an intensity; a run has at most 128 batches.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CovarianceShard {
+    /// The batch sums of the single- and multiple-scattering parts.
+    pub moments: PartialMoments,
+}
+
+impl CovarianceShard {
+    /// Merges the shards of one render (in any order) into its estimate: bitwise the estimate
+    /// of the single run. An error names missing or overlapping shards by index, and shards of
+    /// different renders.
+    pub fn merge(shards: &[CovarianceShard]) -> Result<CovarianceEstimate, EstimatorError> {
+        let first = shards.first().ok_or(ShardError::NoShards)?;
+        let ranges: Vec<_> = shards
+            .iter()
+            .map(|s| (s.moments.shard, s.moments.units.clone()))
+            .collect();
+        let order =
+            speckle_stats::shard::order(&ranges, first.moments.spec.batches().count(), "batches")?;
+        let mut merge = CovarianceMerge::new(&first.moments.spec);
+        for k in order {
+            merge.add(&shards[k])?;
+        }
+        merge.finish()
+    }
+}
+
+/// An incremental merge of the shards of one covariance or intensity render, added in batch
+/// order (for shards read one at a time from files).
+#[derive(Debug, Clone)]
+pub struct CovarianceMerge(MomentsReduction);
+
+impl CovarianceMerge {
+    /// Nothing merged yet, for the render of `spec`.
+    pub fn new(spec: &MomentsSpec) -> Self {
+        Self(MomentsReduction::new(*spec))
+    }
+
+    /// Adds the next shard (its batches must follow those merged so far).
+    pub fn add(&mut self, shard: &CovarianceShard) -> Result<(), EstimatorError> {
+        Ok(self.0.add_partial(&shard.moments)?)
+    }
+
+    /// The merged estimate; an error if batches are missing.
+    pub fn finish(self) -> Result<CovarianceEstimate, EstimatorError> {
+        let paths = self.0.spec().paths;
+        let (parts, total) = self.0.finish()?;
+        Ok(estimate(parts, total, paths))
+    }
+}
+
+fn shard_of(run: MomentsRun) -> Result<CovarianceShard, EstimatorError> {
+    match run {
+        MomentsRun::Shard(moments) => Ok(CovarianceShard { moments }),
+        MomentsRun::Estimate(..) => unreachable!("a shard run gives a shard"),
+    }
+}
+
+/// The covariance estimate of the two parts' estimates and their total.
+fn estimate(
+    parts: Vec<MatrixEstimate>,
+    total: Option<MatrixEstimate>,
+    paths: u64,
+) -> CovarianceEstimate {
+    let [single, multiple]: [MatrixEstimate; 2] =
+        parts.try_into().expect("two parts were estimated");
+    CovarianceEstimate {
+        single,
+        multiple,
+        total: total.expect("the total was estimated"),
+        paths,
+    }
+}
+
 /// The covariance (or its diagonal) with a path factor: every estimator of this module.
 fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
     scene: &Scene<M, P>,
@@ -203,6 +318,21 @@ fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
     diagonal: bool,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
+    match render_run(scene, options, factor, diagonal, None, progress)? {
+        MomentsRun::Estimate(parts, total) => Ok(estimate(parts, total, options.paths)),
+        MomentsRun::Shard(_) => unreachable!("a whole run gives an estimate"),
+    }
+}
+
+/// [`render`] of the whole run (`shard` `None`) or of one shard.
+fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    factor: &F,
+    diagonal: bool,
+    shard: Option<Shard>,
+    progress: &dyn Progress,
+) -> Result<MomentsRun, EstimatorError> {
     check_paths(options.paths)?;
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let layout = match (F::Value::REAL, diagonal) {
@@ -227,25 +357,14 @@ fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
         };
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
-    let (parts, total) = batch_moments(
-        options.paths,
-        scene.len(),
-        layout,
-        2,
-        true,
-        init,
-        path,
-        progress,
-    )
-    .ok_or(EstimatorError::Cancelled)?;
-    let [single, multiple]: [MatrixEstimate; 2] =
-        parts.try_into().expect("two parts were estimated");
-    Ok(CovarianceEstimate {
-        single,
-        multiple,
-        total: total.expect("the total was estimated"),
+    let spec = MomentsSpec {
         paths: options.paths,
-    })
+        j: scene.len(),
+        layout,
+        parts: 2,
+        with_total: true,
+    };
+    run_moments(spec, shard, init, path, progress).ok_or(EstimatorError::Cancelled)
 }
 
 /// The single-scattering covariance of Eq. 41,

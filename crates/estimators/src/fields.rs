@@ -7,7 +7,10 @@ use num_complex::Complex64;
 use speckle_medium::Medium;
 use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
-use speckle_stats::{Batches, Poll, Progress, for_each_path, run_ordered};
+use speckle_stats::{
+    Batches, PartialRows, Poll, Progress, Shard, ShardError, assemble_rows, for_each_path,
+    run_ordered_range,
+};
 use std::f64::consts::TAU;
 use std::ops::Range;
 
@@ -146,6 +149,55 @@ pub fn render_fields<M: Medium, P: PhaseFunction>(
     render(scene, options, progress, FIELD_TILE, None)
 }
 
+/// Renders shard `shard` of [`render_fields`]: its range of realizations, each exactly as the
+/// single run computes it (the mean added when `add_mean`), so that [`FieldShard::merge`] of
+/// all shards is bitwise the single run's fields. A realization is the unit: there is nothing
+/// to split further when there are more shards than realizations (those shards are empty).
+pub fn render_fields_shard<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &FieldOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<FieldShard, EstimatorError> {
+    render_rows(scene, options, progress, FIELD_TILE, None, Some(shard))
+}
+
+/// One shard of a field render: its realizations (rows) and the mean.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldShard {
+    /// Its realizations among the run's, `units.len() x J`.
+    pub rows: PartialRows,
+    /// The speckle mean added to every row (zeros when `add_mean` was off).
+    pub mean: Vec<Complex64>,
+    /// Sub-paths per realization.
+    pub paths_per_realization: u64,
+}
+
+impl FieldShard {
+    /// Merges the shards of one field render (in any order): bitwise the single run's fields.
+    /// An error names missing or overlapping shards by index.
+    pub fn merge(shards: &[FieldShard]) -> Result<FieldEstimate, EstimatorError> {
+        let rows: Vec<PartialRows> = shards.iter().map(|s| s.rows.clone()).collect();
+        let (fields, order) = assemble_rows(&rows, "realizations")?;
+        let first = &shards[order[0]];
+        if shards
+            .iter()
+            .any(|s| s.mean != first.mean || s.paths_per_realization != first.paths_per_realization)
+        {
+            return Err(ShardError::Mismatch(
+                "the shards are of field renders with different means or paths per realization"
+                    .into(),
+            )
+            .into());
+        }
+        Ok(FieldEstimate {
+            fields,
+            mean: first.mean.clone(),
+            paths_per_realization: first.paths_per_realization,
+        })
+    }
+}
+
 /// [`render_fields`] with tiles of at most about `max_tile` pairs and, if given, `batch` paths
 /// per work item.
 fn render<M: Medium, P: PhaseFunction>(
@@ -155,6 +207,23 @@ fn render<M: Medium, P: PhaseFunction>(
     max_tile: usize,
     batch: Option<u64>,
 ) -> Result<FieldEstimate, EstimatorError> {
+    let s = render_rows(scene, options, progress, max_tile, batch, None)?;
+    Ok(FieldEstimate {
+        fields: s.rows.rows,
+        mean: s.mean,
+        paths_per_realization: s.paths_per_realization,
+    })
+}
+
+/// [`render`] of the realizations of `shard` (all of them when `None`).
+fn render_rows<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &FieldOptions,
+    progress: &dyn Progress,
+    max_tile: usize,
+    batch: Option<u64>,
+    shard: Option<Shard>,
+) -> Result<FieldShard, EstimatorError> {
     if options.realizations == 0 {
         return Err(EstimatorError::InvalidInput {
             field: "realizations".into(),
@@ -180,7 +249,11 @@ fn render<M: Medium, P: PhaseFunction>(
     let tiles = tiles(scene, max_tile);
     let nt = tiles.len();
     let per = Batches::of_size(n, batch.unwrap_or_else(|| paths_per_item(n, &tiles[0])));
-    let items = options.realizations * per.count() * nt;
+    let whole = Shard::new(0, 1)?;
+    let shard = shard.unwrap_or(whole);
+    let units = shard.units(options.realizations);
+    let per_realization = per.count() * nt;
+    let items = units.start * per_realization..units.end * per_realization;
     // Item (r, b, t) = ((r * batches) + b) * tiles + t: a realization's batches of one tile
     // are merged in batch order.
     let split = |item: usize| {
@@ -211,12 +284,13 @@ fn render<M: Medium, P: PhaseFunction>(
         })?;
         Some(u)
     };
-    let mut fields = CMatrix::zeros(options.realizations, j);
+    let mut fields = CMatrix::zeros(units.len(), j);
     let scale = 1.0 / (n as f64).sqrt();
     let bytes = tiles.iter().map(Tile::len).max().unwrap_or(0) * 16;
     let nv = scene.sensors().len();
-    let done = run_ordered(items, bytes, work, |item, u| {
+    let done = run_ordered_range(items, bytes, work, |item, u| {
         let (r, _, t) = split(item);
+        let r = r - units.start;
         let row = &mut fields.as_mut_slice()[r * j..(r + 1) * j];
         let add = |dst: &mut [Complex64], from: Range<usize>| {
             for (f, (re, im)) in dst
@@ -241,7 +315,7 @@ fn render<M: Medium, P: PhaseFunction>(
         return Err(EstimatorError::Cancelled);
     }
     if options.add_mean {
-        for r in 0..options.realizations {
+        for r in 0..units.len() {
             for (f, m) in fields.as_mut_slice()[r * j..(r + 1) * j]
                 .iter_mut()
                 .zip(&mean)
@@ -250,8 +324,13 @@ fn render<M: Medium, P: PhaseFunction>(
             }
         }
     }
-    Ok(FieldEstimate {
-        fields,
+    Ok(FieldShard {
+        rows: PartialRows {
+            shard,
+            units,
+            total: options.realizations,
+            rows: fields,
+        },
         mean,
         paths_per_realization: n,
     })

@@ -45,15 +45,16 @@ mod covariance;
 mod fields;
 
 pub use covariance::{
-    CovarianceEstimate, CovarianceOptions, render_covariance, render_covariance_with,
-    render_intensity, render_intensity_with, render_single_scattering,
+    CovarianceEstimate, CovarianceMerge, CovarianceOptions, CovarianceShard, render_covariance,
+    render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,
+    render_intensity_with, render_single_scattering,
 };
-pub use fields::{FieldEstimate, FieldOptions, render_fields};
+pub use fields::{FieldEstimate, FieldOptions, FieldShard, render_fields, render_fields_shard};
 // The types every caller of the estimators handles, defined in the crates below.
 pub use speckle_endpoints::{Pair, Sensor, Source};
 pub use speckle_paths::Coherence;
 pub use speckle_scene::Scene;
-pub use speckle_stats::{CMatrix, MatrixEstimate, NoProgress, Progress};
+pub use speckle_stats::{CMatrix, MatrixEstimate, NoProgress, Progress, Shard, ShardError};
 
 /// Errors of the estimators.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -73,6 +74,10 @@ pub enum EstimatorError {
     /// The render was cancelled through [`Progress::cancelled`].
     #[error("the render was cancelled")]
     Cancelled,
+
+    /// Shards cannot be merged: missing, overlapping, or of different renders.
+    #[error(transparent)]
+    Shard(#[from] ShardError),
 }
 
 /// Field errors of the layers below keep their field name.

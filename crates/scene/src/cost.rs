@@ -81,6 +81,13 @@ pub fn human_seconds(t: f64) -> String {
 }
 
 impl Estimate {
+    /// The estimate of one of `count` shards of this run: its share of the time, and the
+    /// single run's memory (a shard keeps the whole run's accumulators).
+    pub fn shard_of(mut self, count: usize) -> Self {
+        self.seconds /= count.max(1) as f64;
+        self
+    }
+
     /// One line: `about X of memory, roughly Y`.
     pub fn describe(&self) -> String {
         format!(

@@ -173,6 +173,8 @@ pub struct Problem {
     pub name: String,
     /// Where the scene came from (a path, or `<embedded NAME>`).
     pub origin: String,
+    /// The directory relative input files are looked up in.
+    pub base: std::path::PathBuf,
     /// The library scene.
     pub scene: AnyScene,
     /// One description per expanded source.
@@ -268,6 +270,7 @@ impl Problem {
             file,
             name,
             origin: origin.to_string(),
+            base: base.to_path_buf(),
             scene,
             sources: source_desc,
             sensors: sensor_desc,

@@ -9,7 +9,11 @@
 //! render stops within milliseconds even when single paths are long; [`batch_moments`] is the
 //! whole batch-means estimate of sums over paths.
 
-use crate::{BatchSum, Buffers, Layout, MatrixEstimate, Moments};
+use crate::reduction::keep;
+use crate::{
+    BatchSum, BatchSums, Buffers, Layout, MatrixEstimate, MomentsReduction, MomentsSpec,
+    PartialMoments, Shard,
+};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -100,7 +104,7 @@ pub fn for_each_path(
 /// connector) and calls `path(state, n, sums, poll)` for each of its paths `n` in order, which
 /// adds path `n` into one [`BatchSum`] per part (all of `layout`, vectors of length `j`) and may
 /// poll for cancellation inside the path; the batch sums are merged in batch order into
-/// [`Moments`].
+/// [`Moments`] ([`MomentsReduction`]).
 ///
 /// Returns the estimate of every part and, if `with_total`, of their sum (whose standard errors
 /// account for the correlation of the parts within a path); `None` if cancelled.
@@ -119,12 +123,48 @@ where
     I: Fn() -> S + Sync,
     W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
 {
-    let batches = Batches::about(paths, TARGET_BATCHES);
+    let spec = MomentsSpec {
+        paths,
+        j,
+        layout,
+        parts,
+        with_total,
+    };
+    match run_moments(spec, None, init, path, progress)? {
+        MomentsRun::Estimate(parts, total) => Some((parts, total)),
+        MomentsRun::Shard(_) => unreachable!("a whole run gives an estimate"),
+    }
+}
+
+/// What [`run_moments`] returns: the whole run's estimate, or a shard's batch sums.
+#[derive(Debug, Clone)]
+pub enum MomentsRun {
+    /// The estimate of every part and, if asked for, of their sum.
+    Estimate(Vec<MatrixEstimate>, Option<MatrixEstimate>),
+    /// The batch sums of one shard.
+    Shard(PartialMoments),
+}
+
+/// [`batch_moments`] for the whole run (`shard` `None`: batch sums reduced as they come) or for
+/// one shard of it (the shard's batches of the same split, each batch's own sums kept, see
+/// [`PartialMoments`]). `None` if cancelled.
+pub fn run_moments<S, I, W>(
+    spec: MomentsSpec,
+    shard: Option<Shard>,
+    init: I,
+    path: W,
+    progress: &dyn Progress,
+) -> Option<MomentsRun>
+where
+    I: Fn() -> S + Sync,
+    W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
+{
+    let batches = spec.batches();
     let buffers = Buffers::default();
     let run = |b: usize| {
         let range = batches.range(b);
-        let mut sums: Vec<BatchSum> = (0..parts)
-            .map(|_| BatchSum::new(layout, j, &buffers))
+        let mut sums: Vec<BatchSum> = (0..spec.parts)
+            .map(|_| BatchSum::new(spec.layout, spec.j, &buffers))
             .collect();
         let mut state = init();
         for_each_path(range.clone(), progress, |n, poll| {
@@ -134,46 +174,42 @@ where
         let sums: Vec<Vec<Complex64>> = sums.into_iter().map(BatchSum::finish).collect();
         Some((range.end - range.start, sums))
     };
-    let mut moments: Vec<Moments> = (0..parts).map(|_| Moments::new(layout, j)).collect();
-    let mut total = (with_total && parts > 1).then(|| Moments::new(layout, j));
-    let bytes = parts.max(1) * layout.len(j) * 16;
-    let done = run_ordered(batches.count(), bytes, run, |_, (n, sums)| {
-        for (m, s) in moments.iter_mut().zip(&sums) {
-            m.add_batch(n, s, None);
-        }
-        if let Some(t) = &mut total {
-            // Two parts are summed entry by entry inside the moments (as the covariance always
-            // did); more are added up first.
-            match sums.as_slice() {
-                [a, b] => t.add_batch(n, a, Some(b)),
-                _ => {
-                    let mut sum = sums[0].clone();
-                    for s in &sums[1..] {
-                        for (x, y) in sum.iter_mut().zip(s) {
-                            *x += y;
-                        }
-                    }
-                    t.add_batch(n, &sum, None);
+    let bytes = spec.parts.max(1) * spec.layout.len(spec.j) * 16;
+    match shard {
+        None => {
+            let mut reduction = MomentsReduction::new(spec);
+            let done = run_ordered(batches.count(), bytes, run, |_, (n, sums)| {
+                reduction.add(n, &sums);
+                for s in sums {
+                    buffers.give(s);
                 }
+            });
+            if !done {
+                return None;
             }
+            let (parts, total) = reduction.finish().expect("a whole run reduces every batch");
+            Some(MomentsRun::Estimate(parts, total))
         }
-        for s in sums {
-            buffers.give(s);
+        Some(shard) => {
+            let units = shard.units(batches.count());
+            let mut kept = Vec::with_capacity(units.len());
+            let done = run_ordered_range(units.clone(), bytes, run, |_, (n, sums)| {
+                kept.push(BatchSums {
+                    paths: n,
+                    sums: sums.iter().map(|s| keep(&spec, s)).collect(),
+                });
+                for s in sums {
+                    buffers.give(s);
+                }
+            });
+            done.then_some(MomentsRun::Shard(PartialMoments {
+                spec,
+                shard,
+                units,
+                batches: kept,
+            }))
         }
-    });
-    if !done {
-        return None;
     }
-    let parts: Vec<MatrixEstimate> = moments.into_iter().map(Moments::finish).collect();
-    let total = if with_total {
-        Some(match total {
-            Some(t) => t.finish(),
-            None => parts[0].clone(),
-        })
-    } else {
-        None
-    };
-    Some((parts, total))
 }
 
 /// Memory allowed for batch results held at once.
@@ -230,6 +266,25 @@ where
     W: Fn(usize) -> Option<T> + Sync,
     G: FnMut(usize, T) + Send,
 {
+    run_ordered_range(0..count, bytes_per_item, work, merge)
+}
+
+/// [`run_ordered`] for the items `items` only (a shard's units), in their order.
+pub fn run_ordered_range<T, W, G>(
+    items: Range<usize>,
+    bytes_per_item: usize,
+    work: W,
+    merge: G,
+) -> bool
+where
+    T: Send,
+    W: Fn(usize) -> Option<T> + Sync,
+    G: FnMut(usize, T) + Send,
+{
+    let Range {
+        start: first,
+        end: count,
+    } = items;
     let threads = rayon::current_num_threads().max(1);
     let by_memory = (MEMORY_BUDGET / 2 / bytes_per_item.max(1)).max(1);
     let chunk = (4 * threads).min(by_memory).max(1);
@@ -248,11 +303,11 @@ where
         }
         true
     };
-    if count == 0 {
+    if first >= count {
         return true;
     }
-    let mut pending = (0, compute(0));
-    let mut next = chunk;
+    let mut pending = (first, compute(first));
+    let mut next = first + chunk;
     while next < count {
         let (merged, results) = rayon::join(
             || merge_chunk(pending.0, std::mem::take(&mut pending.1)),

@@ -8,7 +8,8 @@
 //! [`rng::PathRng::new`]`(seed, n)`, cuts its work into batches that depend only on the path
 //! count ([`Batches`]), runs them on any number of threads and merges their sums in batch order
 //! ([`run_ordered`]); so the same seed gives bitwise the same numbers for any thread count.
-//! Standard errors come from batch means ([`Moments`]).
+//! Standard errors come from batch means ([`Moments`]). A run can be cut into shards
+//! ([`shard`]) that keep each unit's own result and merge into bitwise the single run.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -19,17 +20,21 @@ mod empirical;
 pub mod jackknife;
 mod matrix;
 mod moments;
+mod reduction;
 pub mod rng;
+pub mod shard;
 
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
 pub use driver::{
-    Batches, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES, batch_moments,
-    for_each_path, run_ordered,
+    Batches, MomentsRun, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES, batch_moments,
+    for_each_path, run_moments, run_ordered, run_ordered_range,
 };
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};
 pub use moments::{BatchSum, Buffers, Layout, Moments};
+pub use reduction::{BatchSums, MomentsReduction, MomentsSpec, PartialMoments};
 pub use rng::PathRng;
+pub use shard::{PartialRows, Shard, ShardError, assemble_rows};
 
 /// Errors of the statistics layer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

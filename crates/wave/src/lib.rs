@@ -100,7 +100,7 @@ mod solve;
 
 pub use cost::{WaveCost, estimate_cost};
 pub use kernel::Kernel;
-pub use render::{WaveEstimate, WaveOptions, render_wave};
+pub use render::{WaveEstimate, WaveOptions, WaveShard, render_wave, render_wave_shard};
 pub use solve::{
     MAX_EXPECTED_SCATTERERS, MAX_SCATTERERS, WaveScene, check_scene, expected_scatterers,
     number_density, sample_scatterers, solve,
@@ -121,6 +121,10 @@ pub enum WaveError {
     /// The render was cancelled through `Progress::cancelled`.
     #[error("the wave render was cancelled")]
     Cancelled,
+
+    /// Shards cannot be merged: missing, overlapping, or of different renders.
+    #[error(transparent)]
+    Shard(#[from] speckle_stats::ShardError),
 }
 
 impl WaveError {

@@ -4,7 +4,10 @@ use crate::solve::{check_scene, expected_scatterers, sample_scatterers, solve_ch
 use crate::{WaveError, WaveScene};
 use num_complex::Complex64;
 use speckle_stats::PathRng;
-use speckle_stats::{CMatrix, MatrixEstimate, Progress, empirical_moments, run_ordered};
+use speckle_stats::{
+    CMatrix, MatrixEstimate, PartialRows, Progress, Shard, ShardError, assemble_rows,
+    empirical_moments, run_ordered_range,
+};
 
 /// Options of [`render_wave`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,6 +80,72 @@ pub fn render_wave(
     options: &WaveOptions,
     progress: &dyn Progress,
 ) -> Result<WaveEstimate, WaveError> {
+    WaveShard::merge(&[render_rows(scene, options, None, progress)?])
+}
+
+/// Renders shard `shard` of [`render_wave`]: its range of configurations, each solved exactly
+/// as in the single run (configuration `r` from the stream `(seed, r)`), so that
+/// [`WaveShard::merge`] of all shards is bitwise the single run's estimate.
+pub fn render_wave_shard(
+    scene: &WaveScene,
+    options: &WaveOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<WaveShard, WaveError> {
+    render_rows(scene, options, Some(shard), progress)
+}
+
+/// One shard of a wave render: the fields of its configurations and their scatterer counts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaveShard {
+    /// Its configurations' fields, `units.len() x J`.
+    pub rows: PartialRows,
+    /// The number of scatterers of each of its configurations.
+    pub scatterer_counts: Vec<usize>,
+    /// Expected number of scatterers, `n |V|`.
+    pub expected_scatterers: f64,
+}
+
+impl WaveShard {
+    /// Merges the shards of one wave render (in any order) into its estimate: bitwise the single
+    /// run's. An error names missing or overlapping shards by index.
+    pub fn merge(shards: &[WaveShard]) -> Result<WaveEstimate, WaveError> {
+        let rows: Vec<PartialRows> = shards.iter().map(|s| s.rows.clone()).collect();
+        let (fields, order) = assemble_rows(&rows, "configurations")?;
+        let counts: Vec<usize> = order
+            .iter()
+            .flat_map(|&k| shards[k].scatterer_counts.iter().copied())
+            .collect();
+        let r = fields.rows();
+        if counts.len() != r {
+            return Err(ShardError::Mismatch(format!(
+                "{} scatterer counts for {r} configurations",
+                counts.len()
+            ))
+            .into());
+        }
+        let moments = empirical_moments(&fields)?;
+        let mean_scatterers = counts.iter().sum::<usize>() as f64 / r as f64;
+        Ok(WaveEstimate {
+            fields,
+            mean: moments.mean,
+            mean_std_error: moments.mean_std_error,
+            covariance: moments.covariance,
+            configurations: r as u64,
+            scatterer_counts: counts,
+            mean_scatterers,
+            expected_scatterers: shards[order[0]].expected_scatterers,
+        })
+    }
+}
+
+/// The configurations of `shard` (all when `None`).
+fn render_rows(
+    scene: &WaveScene,
+    options: &WaveOptions,
+    shard: Option<Shard>,
+    progress: &dyn Progress,
+) -> Result<WaveShard, WaveError> {
     let kernel = check_scene(scene)?;
     let expected = expected_scatterers(scene)?;
     let r = options.configurations;
@@ -86,9 +155,14 @@ pub fn render_wave(
             reason: format!("at least 2 configurations are needed for a covariance (got {r})"),
         });
     }
+    let shard = match shard {
+        Some(s) => s,
+        None => Shard::new(0, 1)?,
+    };
+    let units = shard.units(r);
     let j = scene.len();
-    let mut fields = CMatrix::zeros(r, j);
-    let mut counts = Vec::with_capacity(r);
+    let mut fields = CMatrix::zeros(units.len(), j);
+    let mut counts = Vec::with_capacity(units.len());
     let mut failure = None;
     // One configuration per work item; each holds its Foldy-Lax matrix (16 N^2 bytes) only
     // while a thread solves it, so at most one per thread exists at a time.
@@ -104,31 +178,36 @@ pub fn render_wave(
         progress.advance(1);
         Some(solved)
     };
-    let done = run_ordered(r, 16 * j, work, |row, solved: Solved| match solved {
-        Ok((u, n)) => {
-            fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
-            counts.push(n);
-        }
-        Err(e) => {
-            failure.get_or_insert(e);
-        }
-    });
+    let first = units.start;
+    let done = run_ordered_range(
+        units.clone(),
+        16 * j,
+        work,
+        |c, solved: Solved| match solved {
+            Ok((u, n)) => {
+                let row = c - first;
+                fields.as_mut_slice()[row * j..(row + 1) * j].copy_from_slice(&u);
+                counts.push(n);
+            }
+            Err(e) => {
+                failure.get_or_insert(e);
+            }
+        },
+    );
     if let Some(e) = failure {
         return Err(e);
     }
     if !done {
         return Err(WaveError::Cancelled);
     }
-    let moments = empirical_moments(&fields)?;
-    let mean_scatterers = counts.iter().sum::<usize>() as f64 / r as f64;
-    Ok(WaveEstimate {
-        fields,
-        mean: moments.mean,
-        mean_std_error: moments.mean_std_error,
-        covariance: moments.covariance,
-        configurations: r as u64,
+    Ok(WaveShard {
+        rows: PartialRows {
+            shard,
+            units,
+            total: r,
+            rows: fields,
+        },
         scatterer_counts: counts,
-        mean_scatterers,
         expected_scatterers: expected,
     })
 }

@@ -2,7 +2,7 @@
 //! each command; renders nothing.
 
 use super::*;
-use speckle::wave::{estimate_cost, expected_scatterers};
+use speckle::wave::estimate_cost;
 
 /// Arguments of `check`.
 #[derive(Debug, clap::Args)]
@@ -22,13 +22,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let p = load_file(&a.scene, &o)?;
     // Paths that would never end are an error of the scene, whatever the command.
     p.check_path_length().map_err(in_scene(&p))?;
-    let wave = match p.box_scene().map(|s| expected_scatterers(&s)) {
-        Ok(Ok(n)) => format!("{n:.1} scatterers per configuration on average"),
-        Ok(Err(e)) => format!("not applicable ({e})"),
-        Err(e) => format!("not applicable ({e})"),
-    };
-    say!("{}: ok", p.origin);
-    say!("{}", p.summary(&wave).trim_end());
+    say!("{}", speckle::runs::summary(&p));
     let t = threads();
     let commands = [
         ("covariance", Command::Covariance),

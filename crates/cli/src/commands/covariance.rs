@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::error;
-use speckle::estimators::{CovarianceOptions, EstimatorError, render_covariance};
+use speckle::estimators::{CovarianceEstimate, EstimatorError, render_covariance};
 use speckle::scene::npy::encode_c16;
 
 /// Arguments of `covariance` and `intensity`.
@@ -33,15 +33,7 @@ impl Args {
     }
 }
 
-/// The options of a path-traced render (covariance, intensity, single scattering).
-pub fn options(p: &Problem) -> CovarianceOptions {
-    CovarianceOptions {
-        paths: p.render.paths,
-        seed: p.render.seed,
-        coherence: p.render.coherence,
-        sampling: p.render.sampling,
-    }
-}
+pub use speckle::runs::covariance_options as options;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
@@ -50,13 +42,29 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 
 /// Renders and writes the covariance of `p`.
 pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
-    let j = p.covariance_size(threads()).map_err(in_scene(p))?;
-    let mut staged = plan(p, estimate(p, Command::Covariance), run)?;
+    p.covariance_size(threads()).map_err(in_scene(p))?;
+    let staged = plan_render(p, Kind::Covariance, run)?;
+    if let Some(s) = run.shard {
+        return shard(p, Kind::Covariance, s, run, staged);
+    }
     let opts = options(p);
     let ((est, mean), wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
         let est = render_covariance(&p.scene, &opts, pr)?;
         Ok::<_, EstimatorError>((est, means(p, pr)?))
     })?;
+    write(p, staged, &est, &mean, wall)
+}
+
+/// Writes the covariance `est` of `p` (rendered, or merged from shards) and the speckle means
+/// `mean` of its pairs.
+pub fn write(
+    p: &Problem,
+    mut staged: Staged,
+    est: &CovarianceEstimate,
+    mean: &[Complex64],
+    wall: f64,
+) -> anyhow::Result<()> {
+    let j = p.pairs();
     let n = &p.name;
     let mut files = json!({
         "layout": "cov*: complex128 (J, J), row j1 column j2 = pairs[j1], pairs[j2]; \
@@ -69,7 +77,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
         ("cov_single", square(&est.single.value)),
         ("cov_multiple", square(&est.multiple.value)),
         ("cov_stderr", square(&est.total.std_error)),
-        ("mean", encode_c16(&[j], &mean)),
+        ("mean", encode_c16(&[j], mean)),
     ];
     stage_arrays(&mut staged, &mut files, n, arrays);
     stage_magnitude_png(
@@ -86,7 +94,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
         "mean_diagonal_single": mean_diagonal(&est.single.value),
         "mean_diagonal_multiple": mean_diagonal(&est.multiple.value),
         "max_relative_stderr_diagonal": max_rel,
-        "mean_coherent_intensity": coherent_intensity(&mean),
+        "mean_coherent_intensity": coherent_intensity(mean),
     });
     let render = p.render.paths_json(threads(), wall);
     let meta = p.sidecar("covariance", render, files, summary);
@@ -94,7 +102,7 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
     say!(
         "{n}: covariance of J = {j} pairs from {} paths in {wall:.2} s ({} threads); mean \
          diagonal {total_diag:.4e} (max relative stderr {:.2}%)",
-        opts.paths,
+        est.paths,
         threads(),
         100.0 * max_rel
     );

@@ -29,6 +29,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         quiet: a.quiet,
         cancel_after: None,
         force: false,
+        shard: None,
     };
     let start = Instant::now();
     covariance::render(&p, run)?;

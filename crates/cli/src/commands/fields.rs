@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::error;
-use speckle::estimators::{FieldOptions, render_fields};
+use speckle::estimators::{FieldEstimate, render_fields};
 use speckle::scene::npy::encode_c16;
 
 /// Arguments of `fields`.
@@ -45,23 +45,29 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 
 /// Renders and writes field realizations of `p`.
 pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
-    let r = &p.render;
-    let (j, rr) = (p.pairs(), r.realizations);
-    p.field_rows_size(rr, "render.realizations")
+    p.field_rows_size(p.render.realizations, "render.realizations")
         .map_err(in_scene(p))?;
-    let mut staged = plan(p, estimate(p, Command::Fields), run)?;
-    let opts = FieldOptions {
-        realizations: rr,
-        paths_per_realization: r.paths_per_realization,
-        seed: r.seed,
-        coherence: r.coherence,
-        add_mean: r.add_mean,
-        sampling: r.sampling,
-    };
-    let total = (rr as u64).saturating_mul(r.paths_per_realization);
+    let staged = plan_render(p, Kind::Fields, run)?;
+    if let Some(s) = run.shard {
+        return shard(p, Kind::Fields, s, run, staged);
+    }
+    let opts = speckle::runs::field_options(p);
+    let (total, _) = work(p, Kind::Fields, None);
     let (est, wall) = run.timed(p, total, "paths", error::estimator, |pr| {
         render_fields(&p.scene, &opts, pr)
     })?;
+    write(p, staged, &est, wall)
+}
+
+/// Writes the field realizations `est` of `p` (rendered, or merged from shards).
+pub fn write(
+    p: &Problem,
+    mut staged: Staged,
+    est: &FieldEstimate,
+    wall: f64,
+) -> anyhow::Result<()> {
+    let r = &p.render;
+    let (j, rr) = (p.pairs(), r.realizations);
     let n = &p.name;
     let (shape, layout) = layout(p, rr, "realization");
     let data = est.fields.as_slice();

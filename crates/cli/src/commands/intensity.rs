@@ -3,16 +3,29 @@
 use super::covariance::{Args, options};
 use super::*;
 use crate::error;
-use speckle::estimators::render_intensity;
+use speckle::estimators::{CovarianceEstimate, render_intensity};
 use speckle::scene::npy::encode_f8;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
-    let mut staged = plan(&p, estimate(&p, Command::Intensity), run)?;
+    let staged = plan_render(&p, Kind::Intensity, run)?;
+    if let Some(s) = run.shard {
+        return shard(&p, Kind::Intensity, s, run, staged);
+    }
     let opts = options(&p);
     let (est, wall) = run.timed(&p, opts.paths, "paths", error::estimator, |pr| {
         render_intensity(&p.scene, &opts, pr)
     })?;
+    write(&p, staged, &est, wall)
+}
+
+/// Writes the intensities `est` of `p` (rendered, or merged from shards).
+pub fn write(
+    p: &Problem,
+    mut staged: Staged,
+    est: &CovarianceEstimate,
+    wall: f64,
+) -> anyhow::Result<()> {
     // The estimate's matrices are J x 1 columns; the diagonal of a covariance is real.
     let re = |m: &CMatrix| m.as_slice().iter().map(|c| c.re).collect::<Vec<f64>>();
     let (total, se, single) = (
@@ -46,7 +59,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         for (s, row) in total.chunks_exact(p.n_sensors()).enumerate() {
             let file = format!("{n}.intensity.s{s}.png");
             let max = row.iter().copied().fold(0.0, f64::max);
-            staged.add(file.clone(), grid_png(&p, g, row, max)?);
+            staged.add(file.clone(), grid_png(p, g, row, max)?);
             png_files.push(file);
         }
         files["png"] = json!({
@@ -65,12 +78,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     });
     let render = p.render.paths_json(threads(), wall);
     let meta = p.sidecar("intensity", render, files, summary);
-    stage_sidecar(&mut staged, &p, "intensity", &meta)?;
+    stage_sidecar(&mut staged, p, "intensity", &meta)?;
     say!(
         "{n}: intensity of J = {} pairs from {} paths in {wall:.2} s ({} threads); mean \
          {mean:.4e} (max relative stderr {:.2}%)",
         p.pairs(),
-        opts.paths,
+        est.paths,
         threads(),
         100.0 * max_rel
     );

@@ -39,6 +39,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         quiet: a.quiet,
         cancel_after: None,
         force: a.force,
+        shard: None,
     };
     let mut staged = plan(&p, estimate(&p, Command::Mean), run)?;
     let start = Instant::now();

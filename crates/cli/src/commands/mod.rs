@@ -10,6 +10,7 @@ pub mod fit_phase;
 pub mod intensity;
 pub mod mean;
 pub mod memory_spectrum;
+pub mod merge;
 pub mod mie;
 pub mod single;
 pub mod wave;
@@ -20,9 +21,11 @@ use crate::progress::{CliProgress, install_interrupt_handler, interrupted};
 use serde_json::{Value, json};
 use speckle::estimators::{CMatrix, MatrixEstimate, Progress};
 use speckle::phase::Complex64;
+use speckle::runs::{Kind, render_shard, work};
 use speckle::scene::build::endpoints::SensorGrid;
 use speckle::scene::cost::{self, Command, Estimate};
 use speckle::scene::{LoadError, Overrides, Problem, load_file};
+use speckle::stats::Shard;
 use speckle_output::Staged;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -55,6 +58,10 @@ pub struct Common {
     /// `wave`) are done.
     #[arg(long, hide = true, value_name = "PATHS")]
     pub cancel_after_paths: Option<u64>,
+    /// Render only shard I of N of the run (a range of its batches, realizations or
+    /// configurations) into `<name>.<kind>.I-of-N.shard`, for `speckle merge`.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
 }
 
 impl Common {
@@ -77,6 +84,7 @@ impl Common {
             quiet: self.quiet,
             cancel_after: self.cancel_after_paths,
             force: self.force,
+            shard: self.shard,
         };
         Ok((p, run))
     }
@@ -106,6 +114,8 @@ pub struct RunOptions {
     pub cancel_after: Option<u64>,
     /// Go ahead whatever the estimated cost.
     pub force: bool,
+    /// Render only this shard.
+    pub shard: Option<Shard>,
 }
 
 impl RunOptions {
@@ -143,6 +153,12 @@ pub fn plan(
     prepare(p.out_dir())
 }
 
+/// [`plan`] for a render of `kind` (or the shard of it that `run` asks for).
+pub fn plan_render(p: &Problem, kind: Kind, run: RunOptions) -> anyhow::Result<Staged> {
+    let e = speckle::runs::estimate(p, kind, threads(), run.shard).map_err(error::runs)?;
+    plan(p, Ok(e), run)
+}
+
 /// The estimate of `command` on `p` with the threads in use.
 pub fn estimate(p: &Problem, command: Command) -> Result<Estimate, speckle::scene::SceneError> {
     p.estimate(command, threads())
@@ -151,6 +167,32 @@ pub fn estimate(p: &Problem, command: Command) -> Result<Estimate, speckle::scen
 /// Checks the output directory `dir` before any work and returns an empty staging area for it.
 pub fn prepare(dir: &Path) -> anyhow::Result<Staged> {
     Staged::prepare(dir).map_err(error::output)
+}
+
+/// Renders shard `s` of `p`'s render of `kind` and writes it as `<name>.<kind>.<i>-of-<n>.shard`.
+pub fn shard(
+    p: &Problem,
+    kind: Kind,
+    s: Shard,
+    run: RunOptions,
+    mut staged: Staged,
+) -> anyhow::Result<()> {
+    let (total, unit) = work(p, kind, Some(s));
+    let (file, wall) = run.timed(p, total, unit, crate::error::runs, |pr| {
+        render_shard(p, kind, s, pr)
+    })?;
+    let h = &file.header;
+    say!(
+        "{}: shard {s} of the {} ({} {:?} of {}) in {wall:.2} s ({} threads)",
+        p.name,
+        kind.command(),
+        kind.unit(),
+        h.units,
+        h.total,
+        threads()
+    );
+    staged.add(file.file_name(), file.to_bytes());
+    finish(staged)
 }
 
 /// A scene error of `p`, in its document (exit code 2).

@@ -7,7 +7,7 @@ use super::*;
 use crate::error;
 use speckle::scene::cost::{human_bytes, human_seconds};
 use speckle::scene::npy::encode_c16;
-use speckle::wave::{Kernel, WaveOptions, estimate_cost, number_density, render_wave};
+use speckle::wave::{Kernel, WaveEstimate, estimate_cost, number_density, render_wave};
 
 /// Arguments of `wave`.
 #[derive(Debug, clap::Args)]
@@ -33,7 +33,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let scene = p.box_scene()?;
     let rr = p.render.configurations;
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
-    let density = number_density(&scene).map_err(wave_error)?;
+    number_density(&scene).map_err(wave_error)?;
     let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
     p.field_rows_size(rr, "render.configurations")
         .map_err(in_scene(&p))?;
@@ -42,9 +42,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (_, field_png) = p.pngs(Command::Fields, rr).map_err(in_scene(&p))?;
     let (jf, rf) = (j as f64, rr as f64);
     let staged_bytes = 16.0 * (rf * jf + 2.0 * jf * jf + 2.0 * jf) + cov_png + field_png;
-    let mut staged = plan(
+    let staged = plan(
         &p,
-        Ok(cost.estimate(staged_bytes)),
+        Ok(match run.shard {
+            Some(s) => cost.estimate(staged_bytes).shard_of(s.count),
+            None => cost.estimate(staged_bytes),
+        }),
         RunOptions { quiet: true, ..run },
     )?;
     if !run.quiet {
@@ -60,16 +63,31 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             human_seconds(cost.seconds)
         );
     }
-    let opts = WaveOptions {
-        configurations: rr,
-        seed: p.render.seed,
-    };
+    if let Some(s) = run.shard {
+        return shard(&p, Kind::Wave, s, run, staged);
+    }
+    let opts = speckle::runs::wave_options(&p);
     let (est, wall) = run.timed(&p, rr as u64, "configurations", wave_error, |pr| {
         render_wave(&scene, &opts, pr)
     })?;
+    write(&p, staged, &est, wall)
+}
+
+/// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
+pub fn write(
+    p: &Problem,
+    mut staged: Staged,
+    est: &WaveEstimate,
+    wall: f64,
+) -> anyhow::Result<()> {
+    let wave_error = |e| error::wave(e, &p.origin);
+    let scene = p.box_scene()?;
+    let (j, rr) = (p.pairs(), p.render.configurations);
+    let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
+    let density = number_density(&scene).map_err(wave_error)?;
     let n = &p.name;
     let cov = &est.covariance;
-    let (fields_shape, fields_layout) = layout(&p, rr, "configuration");
+    let (fields_shape, fields_layout) = layout(p, rr, "configuration");
     let mut files = json!({
         "layout": format!(
             "wave_cov, wave_cov_stderr: complex128 (J, J), row j1 column j2 = pairs[j1], \
@@ -95,7 +113,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     ];
     stage_arrays(&mut staged, &mut files, n, arrays);
     stage_magnitude_png(
-        &p,
+        p,
         &mut staged,
         &mut files,
         &cov.value,
@@ -103,13 +121,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     )?;
     let naming = "<name>.wave.r{configuration}.s{source}.png";
     let stem = format!("{n}.wave");
-    let images = FieldImages::new(&p, est.fields.as_slice(), &stem, naming, &mut staged)?;
+    let images = FieldImages::new(p, est.fields.as_slice(), &stem, naming, &mut staged)?;
     if let Some(png) = images.png.clone() {
         files["field_png"] = png;
     }
     let diag = mean_diagonal(&cov.value);
     let counts = &est.scatterer_counts;
-    let mut summary = images.summary(&p);
+    let mut summary = images.summary(p);
     for (key, v) in [
         ("mean_diagonal", json!(diag)),
         (
@@ -134,7 +152,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                    each configuration of resonant, lossless, isotropic point scatterers placed \
                    uniformly in the box, their number Poisson with mean n |V|",
         "configurations": rr,
-        "seed": opts.seed,
+        "seed": p.render.seed,
         "streams": "configuration r draws from the counter-based stream (seed, r)",
         "expected_scatterers": est.expected_scatterers,
         "mean_scatterers": est.mean_scatterers,
@@ -145,7 +163,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "wall_time_s": wall,
     });
     let meta = p.sidecar("wave", render, files, summary);
-    stage_sidecar(&mut staged, &p, "wave", &meta)?;
+    stage_sidecar(&mut staged, p, "wave", &meta)?;
     say!(
         "{n}: exact wave covariance of J = {j} pairs from {rr} configurations ({:.1} scatterers \
          on average, {:.1} expected) in {wall:.2} s ({} threads); mean diagonal {diag:.4e} (max \

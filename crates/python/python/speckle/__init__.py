@@ -1,0 +1,564 @@
+"""Monte Carlo rendering of speckle statistics in scattering media.
+
+The path-space Monte Carlo method of Bar, Alterman, Gkioulekas and Levin (ACM TOG 38(4),
+2019) for the speckle mean, covariance and field realizations of coherent light in a random
+medium, in absolute units, with standard errors; and an exact wave solver (Foldy-Lax point
+scatterers) as a reference. This package is the Python face of the ``speckle`` Rust workspace:
+the same scene format, the same validation, the same renderers and bitwise the same numbers as
+the ``speckle`` command line.
+
+A scene is a dict of the scene file's schema (see the README), TOML text, a file or an
+embedded example::
+
+    import speckle
+    scene = speckle.load({
+        "wavelength": 1.0,
+        "medium": {"size": [30, 30, 10], "mean_free_path": 10.0},
+        "phase": {"type": "hg", "g": 0.5},
+        "sources": [{"type": "plane_tilts", "tilts_deg": [0.0, 2.0]}],
+        "sensors": [{"type": "far_arc", "angles_deg": [-5, 5], "n": 21}],
+    })
+    r = speckle.covariance(scene, paths=100_000, seed=1)
+    r.cov          # (J, J) complex128, J = 2 x 21 pairs
+    r.cov_stderr   # its standard errors (re, im)
+
+Renders release the GIL and run on all cores (``threads=`` to choose); ctrl-c stops them
+(``KeyboardInterrupt``). Invalid input raises :class:`SceneError`, a ``ValueError`` whose
+``field`` names the offending field (``medium.mean_free_path``).
+
+Large renders can be cut into shards, rendered anywhere (Dask, Ray, a Slurm array) and merged
+into exactly the single run::
+
+    parts = [speckle.covariance(scene, shard=(i, 8)) for i in range(8)]   # or in parallel
+    r = speckle.merge(parts)   # bitwise speckle.covariance(scene)
+
+Shards pickle (by their file's bytes), save with :func:`save_shard` and read with
+:func:`read_shard`; the ``speckle`` command line merges the same files (``speckle merge``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Dict, Iterable, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _speckle
+from ._speckle import SceneError, Shard, ShardError
+
+__all__ = [
+    "EXAMPLES",
+    "CovarianceResult",
+    "FieldsResult",
+    "IntensityResult",
+    "MeanResult",
+    "Result",
+    "Scene",
+    "SceneError",
+    "Shard",
+    "ShardError",
+    "SingleResult",
+    "WaveResult",
+    "covariance",
+    "fields",
+    "intensity",
+    "load",
+    "mean",
+    "merge",
+    "read_shard",
+    "save_shard",
+    "single",
+    "wave",
+]
+
+__version__: str = _speckle.__version__
+
+#: Names of the embedded example scenes (``speckle example --list``).
+EXAMPLES: Tuple[str, ...] = tuple(_speckle.EXAMPLES)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+class Scene:
+    """A loaded and validated scene with its render settings.
+
+    Build one with :func:`load` or the class methods; every value is checked once, by the same
+    code as the ``speckle`` command line, and an invalid one raises :class:`SceneError` naming
+    its field. The render settings of the scene (``[render]``: paths, seed, ...) are the
+    defaults of the render functions, whose keyword arguments replace them.
+    """
+
+    __slots__ = ("_p",)
+
+    def __init__(self, problem: _speckle.Problem) -> None:
+        self._p = problem
+
+    @classmethod
+    def from_dict(
+        cls,
+        scene: Mapping[str, Any],
+        *,
+        base: Optional[PathLike] = None,
+        name: str = "scene",
+        **settings: Any,
+    ) -> "Scene":
+        """A scene from a dict of the scene file's schema.
+
+        Keys and values are those of the TOML scene format (``{"medium": {"size": [...]}}``;
+        lists of tables are lists of dicts). NumPy arrays and scalars are accepted where the
+        format has numbers; ``None`` values are left out. Relative input files (phase tables,
+        voxel grids) are found in ``base`` (default: the current directory). ``settings``
+        replace render settings (``paths=``, ``seed=``, ...).
+        """
+        if not isinstance(scene, Mapping):
+            raise SceneError(f"a scene dict is needed (got a {type(scene).__name__})")
+        base = Path.cwd() if base is None else Path(base).absolute()
+        return cls(_speckle.Problem.from_dict(dict(scene), str(base), name, settings))
+
+    @classmethod
+    def from_toml(
+        cls,
+        text: str,
+        *,
+        base: Optional[PathLike] = None,
+        name: str = "scene",
+        **settings: Any,
+    ) -> "Scene":
+        """A scene from the text of a TOML scene file (``base`` as in :meth:`from_dict`)."""
+        base = Path.cwd() if base is None else Path(base).absolute()
+        return cls(_speckle.Problem.from_toml(text, str(base), name, settings))
+
+    @classmethod
+    def from_file(cls, path: PathLike, **settings: Any) -> "Scene":
+        """A scene from a TOML scene file; its relative input files are found next to it."""
+        return cls(_speckle.Problem.from_file(os.fspath(path), settings))
+
+    @classmethod
+    def example(cls, name: str = "default", **settings: Any) -> "Scene":
+        """An embedded example scene (see :data:`EXAMPLES`)."""
+        return cls(_speckle.Problem.example(name, settings))
+
+    def with_settings(self, **settings: Any) -> "Scene":
+        """The same scene with other render settings: ``paths``, ``seed``, ``forward_only``,
+        ``realizations``, ``paths_per_realization``, ``no_mean``, ``configurations``."""
+        return Scene(self._p.with_overrides(settings))
+
+    @property
+    def name(self) -> str:
+        """Output prefix (the file's stem, or ``name``)."""
+        return self._p.name
+
+    @property
+    def origin(self) -> str:
+        """Where the scene came from: a path, ``<dict>``, ``<toml>``, ``<embedded NAME>``."""
+        return self._p.origin
+
+    @property
+    def pairs(self) -> int:
+        """Number of (source, sensor) pairs ``J``: covariances are ``J x J``."""
+        return self._p.pairs
+
+    @property
+    def n_sources(self) -> int:
+        """Number of sources, generators expanded."""
+        return self._p.n_sources
+
+    @property
+    def n_sensors(self) -> int:
+        """Number of sensors, generators expanded."""
+        return self._p.n_sensors
+
+    @property
+    def all_pairs(self) -> bool:
+        """Whether the pairs are all (source, sensor) combinations, source-major."""
+        return self._p.all_pairs
+
+    @property
+    def pair_shape(self) -> Tuple[int, ...]:
+        """The shape of one value per pair: ``(n_sources, n_sensors)`` with all pairs, else
+        ``(J,)``."""
+        return tuple(self._p.pair_shape)
+
+    @property
+    def grid(self) -> Optional[Tuple[int, int]]:
+        """``(ny, nx)`` when the sensors form one image (sensor index ``iy * nx + ix``)."""
+        return self._p.grid
+
+    @property
+    def pair_list(self) -> np.ndarray:
+        """``(J, 2)`` integer array: ``(source, sensor)`` of every pair, in covariance order."""
+        return np.array(self._p.pair_list(), dtype=np.int64).reshape(-1, 2)
+
+    @property
+    def settings(self) -> Dict[str, Any]:
+        """The scene as parsed and validated, defaults filled in (what the JSON sidecars
+        record)."""
+        return json.loads(self._p.scene_json())
+
+    @property
+    def derived(self) -> Dict[str, Any]:
+        """Derived quantities: coefficients, optical thickness, wavenumber, counts."""
+        return json.loads(self._p.derived_json())
+
+    @property
+    def toml(self) -> str:
+        """The scene as parsed and validated, as TOML (loads back to the same scene)."""
+        return self._p.scene_toml()
+
+    def summary(self) -> str:
+        """What ``speckle check`` prints."""
+        return self._p.summary()
+
+    def __repr__(self) -> str:
+        return (
+            f"Scene({self.name!r}: J = {self.pairs}, {self.n_sources} sources, "
+            f"{self.n_sensors} sensors)"
+        )
+
+
+SceneLike = Union[Scene, Mapping[str, Any], str, "os.PathLike[str]"]
+
+
+def load(scene: SceneLike, **settings: Any) -> Scene:
+    """A :class:`Scene` from a dict, TOML text, a file path or a Scene.
+
+    A ``str`` with a newline or an ``=`` is TOML text, any other ``str`` or path-like a file.
+    ``settings`` replace render settings (``paths=``, ``seed=``, ...).
+
+    >>> import speckle
+    >>> s = speckle.load(speckle.Scene.example("default").toml)
+    >>> s.pairs
+    512
+    """
+    if isinstance(scene, Scene):
+        return scene.with_settings(**settings) if settings else scene
+    if isinstance(scene, Mapping):
+        return Scene.from_dict(scene, **settings)
+    if isinstance(scene, str) and ("\n" in scene or "=" in scene):
+        return Scene.from_toml(scene, **settings)
+    if isinstance(scene, (str, os.PathLike)):
+        return Scene.from_file(scene, **settings)
+    raise SceneError(
+        f"a scene is a dict, TOML text, a file path or a Scene (got {type(scene).__name__})"
+    )
+
+
+@dataclass(frozen=True)
+class Result:
+    """What every render returns: the scene it rendered (with the settings used)."""
+
+    scene: Scene
+
+    @property
+    def seed(self) -> int:
+        """The seed of the render."""
+        return int(self.scene.settings["render"]["seed"])
+
+    def arrays(self) -> Dict[str, np.ndarray]:
+        """Every array, keyed as the command line's files (``cov`` for ``<name>.cov.npy``)."""
+        return {k: v for k, v in vars(self).items() if isinstance(v, np.ndarray)}
+
+
+@dataclass(frozen=True)
+class CovarianceResult(Result):
+    """The speckle covariance of all pairs (``speckle covariance``).
+
+    ``C[j1, j2] = E[u_j1 conj(u_j2)] - E[u_j1] conj(E[u_j2])`` for pairs ``j = (source,
+    sensor)`` in :attr:`Scene.pair_list` order; standard errors from batch means over 128
+    batches (real part: of ``Re C``, imaginary part: of ``Im C``).
+    """
+
+    cov: np.ndarray
+    """``(J, J)`` complex128: the covariance (single + multiple scattering)."""
+    cov_stderr: np.ndarray
+    """``(J, J)`` complex128: its standard errors."""
+    cov_single: np.ndarray
+    """``(J, J)`` complex128: the single-scattering part."""
+    cov_single_stderr: np.ndarray
+    """Its standard errors."""
+    cov_multiple: np.ndarray
+    """``(J, J)`` complex128: the multiple-scattering part."""
+    cov_multiple_stderr: np.ndarray
+    """Its standard errors."""
+    mean: np.ndarray
+    """``(J,)`` complex128: the speckle mean of each pair (closed form)."""
+    paths: int
+    """Number of sampled sub-paths."""
+
+    def by_pair(self) -> np.ndarray:
+        """The covariance as ``(n_sources, n_sensors, n_sources, n_sensors)`` (all pairs)."""
+        ns, nd = self.scene.n_sources, self.scene.n_sensors
+        return self.cov.reshape(ns, nd, ns, nd)
+
+
+@dataclass(frozen=True)
+class IntensityResult(Result):
+    """Speckle intensities ``C[j, j] = E|u_j|^2 - |E u_j|^2`` (``speckle intensity``), bitwise
+    the diagonal of :func:`covariance`, at a cost linear in ``J``; float64 arrays of
+    :attr:`Scene.pair_shape`."""
+
+    intensity: np.ndarray
+    """Intensities (single + multiple scattering)."""
+    intensity_stderr: np.ndarray
+    """Their standard errors."""
+    intensity_single: np.ndarray
+    """The single-scattering part."""
+    intensity_single_stderr: np.ndarray
+    """Its standard errors."""
+    intensity_multiple: np.ndarray
+    """The multiple-scattering part."""
+    intensity_multiple_stderr: np.ndarray
+    """Its standard errors."""
+    paths: int
+    """Number of sampled sub-paths."""
+
+
+@dataclass(frozen=True)
+class FieldsResult(Result):
+    """Speckle field realizations (``speckle fields``, Alg. 2) whose covariance is that of
+    :func:`covariance`."""
+
+    fields: np.ndarray
+    """``(R, *pair_shape)`` complex128: realization ``r`` of every pair's field."""
+    mean: np.ndarray
+    """``(J,)`` complex128: the speckle mean added to every realization (zeros with
+    ``no_mean``)."""
+    realizations: int
+    """Number of realizations ``R``."""
+    paths_per_realization: int
+    """Sub-paths summed into each realization."""
+
+
+@dataclass(frozen=True)
+class WaveResult(Result):
+    """The exact reference (``speckle wave``): Foldy-Lax fields of random configurations of
+    point scatterers, their sample mean and covariance in the layout of
+    :class:`CovarianceResult`."""
+
+    wave_cov: np.ndarray
+    """``(J, J)`` complex128: sample covariance over configurations."""
+    wave_cov_stderr: np.ndarray
+    """Its standard errors."""
+    wave_mean: np.ndarray
+    """``(J,)`` complex128: sample mean of each pair's field."""
+    wave_mean_stderr: np.ndarray
+    """Its standard errors."""
+    wave_fields: np.ndarray
+    """``(R, *pair_shape)`` complex128: the field of every configuration."""
+    scatterer_counts: np.ndarray
+    """``(R,)`` number of scatterers of each configuration."""
+    mean_scatterers: float
+    """Mean number of scatterers."""
+    expected_scatterers: float
+    """Expected number of scatterers ``n |V|``."""
+    configurations: int
+    """Number of configurations ``R``."""
+
+
+@dataclass(frozen=True)
+class SingleResult(Result):
+    """The single-scattering covariance of Eq. 41 alone (``speckle single``)."""
+
+    single: np.ndarray
+    """``(J, J)`` complex128."""
+    single_stderr: np.ndarray
+    """Its standard errors."""
+    paths: int
+    """Number of sampled first vertices."""
+
+
+@dataclass(frozen=True)
+class MeanResult(Result):
+    """The speckle mean of every pair in closed form (``speckle mean``)."""
+
+    mean: np.ndarray
+    """``(J,)`` complex128."""
+
+
+_RESULTS = {
+    "covariance": CovarianceResult,
+    "intensity": IntensityResult,
+    "fields": FieldsResult,
+    "wave": WaveResult,
+    "single": SingleResult,
+    "mean": MeanResult,
+}
+
+
+def _result(scene: Scene, d: Dict[str, Any]) -> Result:
+    warning = d.pop("mean_warning", None)
+    if warning:
+        warnings.warn(warning, RuntimeWarning, stacklevel=3)
+    cls = _RESULTS[d.pop("kind")]
+    d.pop("shards", None)
+    return cls(scene=scene, **d)
+
+
+ShardSpec = Union[Tuple[int, int], str]
+
+
+def _shard(spec: ShardSpec) -> Tuple[int, int]:
+    if isinstance(spec, str):
+        i, sep, n = spec.partition("/")
+        if not sep:
+            raise ShardError(f"shard: expected 'INDEX/COUNT', for example '3/7' (got {spec!r})")
+        return int(i), int(n)
+    i, n = spec
+    return int(i), int(n)
+
+
+def _run(
+    kind: str,
+    scene: SceneLike,
+    settings: Dict[str, Any],
+    threads: Optional[int],
+    shard: Optional[ShardSpec],
+    force: bool,
+) -> Union[Result, Shard]:
+    s = load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    if shard is not None:
+        i, n = _shard(shard)
+        return _speckle.render_shard(s._p, kind, i, n, threads, force)
+    return _result(s, _speckle.render(s._p, kind, threads, force))
+
+
+def covariance(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    forward_only: bool = False,
+    threads: Optional[int] = None,
+    shard: Optional[ShardSpec] = None,
+    force: bool = False,
+) -> Union[CovarianceResult, Shard]:
+    """Renders the speckle covariance of all pairs (Alg. 1) and the speckle mean.
+
+    ``paths`` sub-paths (default: the scene's ``render.paths``) from the random streams of
+    ``seed``; ``forward_only`` leaves out reversed paths (no coherent backscattering). The
+    result is bitwise the same for any ``threads`` and equals ``speckle covariance``'s arrays.
+    With ``shard=(i, n)`` (or ``"i/n"``), renders only shard ``i`` of ``n`` and returns it as a
+    :class:`Shard` for :func:`merge`.
+    """
+    settings = dict(paths=paths, seed=seed, forward_only=forward_only)
+    return _run("covariance", scene, settings, threads, shard, force)  # type: ignore[return-value]
+
+
+def intensity(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    forward_only: bool = False,
+    threads: Optional[int] = None,
+    shard: Optional[ShardSpec] = None,
+    force: bool = False,
+) -> Union[IntensityResult, Shard]:
+    """Renders the intensity of every pair alone (the covariance diagonal, ``O(J)`` per
+    vertex), with the options of :func:`covariance`."""
+    settings = dict(paths=paths, seed=seed, forward_only=forward_only)
+    return _run("intensity", scene, settings, threads, shard, force)  # type: ignore[return-value]
+
+
+def fields(
+    scene: SceneLike,
+    *,
+    realizations: Optional[int] = None,
+    paths_per_realization: Optional[int] = None,
+    seed: Optional[int] = None,
+    forward_only: bool = False,
+    no_mean: bool = False,
+    threads: Optional[int] = None,
+    shard: Optional[ShardSpec] = None,
+    force: bool = False,
+) -> Union[FieldsResult, Shard]:
+    """Renders ``realizations`` speckle field realizations (Alg. 2) of ``paths_per_realization``
+    sub-paths each, with the speckle mean added unless ``no_mean``. A shard holds a range of
+    realizations."""
+    settings = dict(
+        realizations=realizations,
+        paths_per_realization=paths_per_realization,
+        seed=seed,
+        forward_only=forward_only,
+        no_mean=no_mean,
+    )
+    return _run("fields", scene, settings, threads, shard, force)  # type: ignore[return-value]
+
+
+def wave(
+    scene: SceneLike,
+    *,
+    configurations: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    shard: Optional[ShardSpec] = None,
+    force: bool = False,
+) -> Union[WaveResult, Shard]:
+    """Solves the wave equation exactly (Foldy-Lax) for ``configurations`` random
+    configurations of resonant isotropic point scatterers: the reference the Monte Carlo is
+    checked against (isotropic, lossless scenes only). A shard holds a range of
+    configurations."""
+    settings = dict(configurations=configurations, seed=seed)
+    return _run("wave", scene, settings, threads, shard, force)  # type: ignore[return-value]
+
+
+def single(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> SingleResult:
+    """Renders the single-scattering covariance of Eq. 41 alone (first vertices only)."""
+    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    return _result(s, _speckle.single(s._p, threads, force))  # type: ignore[return-value]
+
+
+def mean(scene: SceneLike) -> MeanResult:
+    """The speckle mean ``E[u]`` of every pair, in closed form (Eq. 20)."""
+    s = load(scene)
+    return _result(s, _speckle.mean(s._p))  # type: ignore[return-value]
+
+
+def merge(shards: Iterable[Union[Shard, PathLike]]) -> Result:
+    """Merges the shards of one run (:class:`Shard` objects or shard file paths, in any order)
+    into bitwise the single run's result.
+
+    Raises :class:`ShardError` for shards of different scenes, seeds or renders, for
+    overlapping shards, and for missing ones: its ``missing`` lists their indices (render them
+    again and merge).
+    """
+    items = [s if isinstance(s, Shard) else os.fspath(s) for s in shards]
+    problem, d = _speckle.merge(items)
+    return _result(Scene(problem), d)
+
+
+def save_shard(shard: Shard, directory: PathLike = ".") -> Path:
+    """Writes ``shard`` into ``directory`` under :attr:`Shard.file_name` (as the command line
+    does), atomically: a temporary file renamed into place. Returns the path."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / shard.file_name
+    fd, tmp = tempfile.mkstemp(prefix=".speckle-", suffix=".partial", dir=d)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(shard.to_bytes())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def read_shard(path: PathLike) -> Shard:
+    """Reads a shard file (written by :func:`save_shard` or ``speckle ... --shard``)."""
+    return Shard.read(os.fspath(path))

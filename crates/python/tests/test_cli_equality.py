@@ -1,0 +1,76 @@
+"""Python results are bitwise the command line's for the same scene and seed: every array of
+`speckle covariance`, `intensity`, `single`, `mean`, `fields` and `wave` (same dtype, shape and
+bytes), for renders on 1 and 2 threads. Run time: a few seconds."""
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import speckle
+
+
+def cli(binary: Path, *args: str) -> None:
+    r = subprocess.run([str(binary), *args], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def same(file: Path, array: np.ndarray) -> None:
+    a = np.load(file)
+    assert a.dtype == array.dtype, file.name
+    assert a.shape == array.shape, file.name
+    assert a.tobytes() == array.tobytes(), f"{file.name} differs"
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_path_traced_renders_equal_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
+    out = tmp_path / "out"
+    for command in ["covariance", "intensity", "single"]:
+        cli(speckle_bin, command, str(tiny_file), "--out", str(out), "-q", "--no-png")
+    cli(speckle_bin, "mean", str(tiny_file), "--out", str(out))
+    scene = speckle.load(tiny_file)
+    c = speckle.covariance(scene, threads=threads)
+    for key in ["cov", "cov_single", "cov_multiple", "cov_stderr", "mean"]:
+        same(out / f"tiny.{key}.npy", getattr(c, key))
+    assert c.paths == 10007 and c.seed == 5
+    i = speckle.intensity(tiny_file, threads=threads)
+    for key in ["intensity", "intensity_stderr", "intensity_single"]:
+        same(out / f"tiny.{key}.npy", getattr(i, key))
+    # The intensity is bitwise the covariance diagonal.
+    assert i.intensity.ravel().tobytes() == c.cov.diagonal().real.copy().tobytes()
+    s = speckle.single(scene, threads=threads)
+    same(out / "tiny.single.npy", s.single)
+    same(out / "tiny.single_stderr.npy", s.single_stderr)
+    same(out / "tiny.mean.npy", speckle.mean(scene).mean)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_fields_and_wave_equal_the_command_line(
+    speckle_bin, tiny_file, wave_file, tmp_path, threads
+):
+    out = tmp_path / "out"
+    cli(speckle_bin, "fields", str(tiny_file), "--out", str(out), "-q", "--no-png")
+    cli(speckle_bin, "wave", str(wave_file), "--out", str(out), "-q", "--no-png")
+    f = speckle.fields(tiny_file, threads=threads)
+    same(out / "tiny.fields.npy", f.fields)
+    same(out / "tiny.mean.npy", f.mean)
+    assert f.fields.shape == (9, 2, 6)
+    w = speckle.wave(wave_file, threads=threads)
+    for key in ["wave_cov", "wave_cov_stderr", "wave_mean", "wave_mean_stderr", "wave_fields"]:
+        same(out / f"w.{key}.npy", getattr(w, key))
+    assert w.configurations == 11 and w.scatterer_counts.shape == (11,)
+
+
+def test_settings_replace_the_scenes_like_the_command_line_options(
+    speckle_bin, tiny_file, tmp_path
+):
+    out = tmp_path / "out"
+    cli(
+        speckle_bin, "covariance", str(tiny_file), "--out", str(out), "-q", "--no-png",
+        "--paths", "3001", "--seed", "9", "--forward-only",
+    )
+    c = speckle.covariance(tiny_file, paths=3001, seed=9, forward_only=True)
+    same(out / "tiny.cov.npy", c.cov)
+    assert c.paths == 3001 and c.seed == 9
+    assert c.scene.settings["render"]["coherence"] == "forward_only"

@@ -1,0 +1,69 @@
+"""Renders release the GIL (another Python thread runs meanwhile) and honour ctrl-c (SIGINT
+raises KeyboardInterrupt within a second on an idle machine, and the process is still usable). Run time: about 5 s."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+
+import speckle
+
+
+def test_the_gil_is_released_during_a_render():
+    scene = speckle.Scene.example("default", paths=300_000)
+    ticks = 0
+    done = threading.Event()
+
+    def count():
+        nonlocal ticks
+        while not done.is_set():
+            ticks += 1
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    start = time.perf_counter()
+    speckle.intensity(scene)
+    wall = time.perf_counter() - start
+    done.set()
+    t.join()
+    # The counter thread runs about once a millisecond while the render holds no GIL.
+    assert wall > 0.2, wall
+    assert ticks > 0.2 * wall * 1000, (ticks, wall)
+
+
+def test_ctrl_c_interrupts_a_render():
+    code = textwrap.dedent(
+        """
+        import sys, time, speckle
+        scene = speckle.Scene.example("default", paths=10**10)
+        print("rendering", flush=True)
+        try:
+            speckle.covariance(scene)
+        except KeyboardInterrupt:
+            t = time.perf_counter()
+            print("interrupted", flush=True)
+            # The interpreter is still usable: a small render runs.
+            r = speckle.intensity(scene.with_settings(paths=2000))
+            print("after", r.intensity.shape, flush=True)
+            sys.exit(3)
+        """
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert p.stdout.readline().strip() == "rendering"
+    time.sleep(1.5)
+    sent = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    line = p.stdout.readline().strip()
+    waited = time.perf_counter() - sent
+    out, err = p.communicate(timeout=60)
+    assert line == "interrupted", (line, out, err)
+    assert p.returncode == 3, (out, err)
+    assert "after (2, 256)" in out, (out, err)
+    # Within milliseconds on an idle machine; a generous bound for a loaded one.
+    assert waited < 5.0, waited

@@ -1,0 +1,182 @@
+//! Merging shards into the single run's estimate.
+
+use crate::{Header, Kind, Outcome, RunError, ShardData, ShardFile, run_hash};
+use speckle_estimators::{CovarianceMerge, FieldShard};
+use speckle_scene::{Overrides, Problem, load_str};
+use speckle_stats::ShardError;
+use speckle_wave::WaveShard;
+use std::path::{Path, PathBuf};
+
+/// The result of a merge: the problem the shards were rendered from (rebuilt from their
+/// header, with the merge's overrides of the output settings), the single run's estimate, and
+/// facts about the shards.
+#[derive(Debug, Clone)]
+pub struct Merged {
+    /// The problem.
+    pub problem: Problem,
+    /// The estimate, bitwise that of the single run.
+    pub outcome: Outcome,
+    /// Number of shards merged.
+    pub shards: usize,
+    /// Their split (when all are of one: `n` of `i/n`).
+    pub count: Option<usize>,
+    /// Sum of the shards' wall times, in seconds.
+    pub shard_wall_time_s: f64,
+}
+
+/// A shard to merge: a file, read when its turn comes, or one in memory.
+enum Source {
+    File(PathBuf),
+    Memory(Box<ShardFile>),
+}
+
+impl Source {
+    fn label(&self, h: &Header) -> String {
+        match self {
+            Source::File(p) => format!("{} (shard {})", p.display(), h.shard),
+            Source::Memory(_) => format!("shard {}", h.shard),
+        }
+    }
+
+    fn load(self) -> Result<ShardFile, RunError> {
+        match self {
+            Source::File(p) => ShardFile::read(&p),
+            Source::Memory(s) => Ok(*s),
+        }
+    }
+}
+
+/// Merges shard files (in any order) into the single run's estimate; reads each file's header
+/// first, and the numbers of a covariance or intensity one shard at a time (the memory of one
+/// shard and the accumulators). `overrides` may change the output settings.
+pub fn merge_files(paths: &[PathBuf], overrides: &Overrides) -> Result<Merged, RunError> {
+    let headers = paths
+        .iter()
+        .map(|p| Ok((ShardFile::read_header(p)?, Source::File(p.clone()))))
+        .collect::<Result<Vec<_>, RunError>>()?;
+    merge_sources(headers, overrides)
+}
+
+/// Merges shards in memory (in any order) into the single run's estimate.
+pub fn merge(shards: Vec<ShardFile>, overrides: &Overrides) -> Result<Merged, RunError> {
+    let headers = shards
+        .into_iter()
+        .map(|s| (s.header.clone(), Source::Memory(Box::new(s))))
+        .collect();
+    merge_sources(headers, overrides)
+}
+
+fn mismatch(what: String) -> RunError {
+    RunError::Shard(ShardError::Mismatch(what))
+}
+
+fn merge_sources(
+    mut shards: Vec<(Header, Source)>,
+    overrides: &Overrides,
+) -> Result<Merged, RunError> {
+    let Some((first, first_source)) = shards.first() else {
+        return Err(ShardError::NoShards.into());
+    };
+    let label0 = first_source.label(first);
+    for (h, s) in &shards[1..] {
+        let other = |what: &str, a: &dyn std::fmt::Display, b: &dyn std::fmt::Display| {
+            mismatch(format!(
+                "{} and {label0} are of different {what} ({b} and {a}); shards of one run \
+                 only can be merged",
+                s.label(h)
+            ))
+        };
+        if h.kind != first.kind {
+            return Err(other("renders", &first.kind.command(), &h.kind.command()));
+        }
+        if h.seed != first.seed {
+            return Err(other("seeds", &first.seed, &h.seed));
+        }
+        if h.run_hash != first.run_hash {
+            return Err(other(
+                "scenes or render settings (run hashes)",
+                &first.run_hash,
+                &h.run_hash,
+            ));
+        }
+    }
+    let (kind, hash) = (first.kind, first.run_hash.clone());
+    let ranges: Vec<_> = shards
+        .iter()
+        .map(|(h, _)| (h.shard, h.units.clone()))
+        .collect();
+    let order = speckle_stats::shard::order(&ranges, first.total, kind.unit())?;
+    let count = shards[0].0.shard.count;
+    let count = shards
+        .iter()
+        .all(|(h, _)| h.shard.count == count)
+        .then_some(count);
+    let problem = rebuild(first, overrides)?;
+    if run_hash(&problem, kind) != hash {
+        return Err(mismatch(format!(
+            "the scene of {label0} no longer builds to the run it was rendered from (an input \
+             file it names changed since, or another speckle version); render the shards again"
+        )));
+    }
+    let wall: f64 = shards.iter().map(|(h, _)| h.wall_time_s).sum();
+    let n = shards.len();
+    // Take the sources in unit order.
+    let mut slots: Vec<Option<(Header, Source)>> = shards.drain(..).map(Some).collect();
+    let mut sources = order.iter().map(|&k| slots[k].take().expect("each once"));
+    let wrong = || mismatch("a shard's numbers are not of its render".into());
+    let outcome = match kind {
+        Kind::Covariance | Kind::Intensity => {
+            let mut merge: Option<CovarianceMerge> = None;
+            for (_, s) in sources.by_ref() {
+                let ShardData::Moments(m) = s.load()?.data else {
+                    return Err(wrong());
+                };
+                merge
+                    .get_or_insert_with(|| CovarianceMerge::new(&m.moments.spec))
+                    .add(&m)?;
+            }
+            let est = merge.ok_or(ShardError::NoShards)?.finish()?;
+            if kind == Kind::Covariance {
+                Outcome::Covariance(est)
+            } else {
+                Outcome::Intensity(est)
+            }
+        }
+        Kind::Fields => {
+            let parts = sources
+                .map(|(_, s)| match s.load()?.data {
+                    ShardData::Fields(f) => Ok(f),
+                    _ => Err(wrong()),
+                })
+                .collect::<Result<Vec<FieldShard>, RunError>>()?;
+            Outcome::Fields(FieldShard::merge(&parts)?)
+        }
+        Kind::Wave => {
+            let parts = sources
+                .map(|(_, s)| match s.load()?.data {
+                    ShardData::Wave(w) => Ok(w),
+                    _ => Err(wrong()),
+                })
+                .collect::<Result<Vec<WaveShard>, RunError>>()?;
+            Outcome::Wave(WaveShard::merge(&parts)?)
+        }
+    };
+    Ok(Merged {
+        problem,
+        outcome,
+        shards: n,
+        count,
+        shard_wall_time_s: wall,
+    })
+}
+
+/// The problem of a shard's header, with `overrides`.
+fn rebuild(h: &Header, overrides: &Overrides) -> Result<Problem, RunError> {
+    Ok(load_str(
+        &h.scene_toml,
+        &h.origin,
+        Path::new(&h.base),
+        &h.name,
+        overrides,
+    )?)
+}
