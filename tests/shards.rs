@@ -96,6 +96,19 @@ fn matrix_bits(m: &MatrixEstimate, out: &mut Vec<u64>) {
     out.push(m.samples);
 }
 
+fn covariance_bits(e: &CovarianceEstimate, out: &mut Vec<u64>) {
+    let CovarianceEstimate {
+        single,
+        multiple,
+        total,
+        paths,
+    } = e;
+    for m in [single, multiple, total] {
+        matrix_bits(m, out);
+    }
+    out.push(*paths);
+}
+
 /// Every number of an outcome, as bits.
 fn bits(o: &Outcome) -> Vec<u64> {
     let mut v = Vec::new();
@@ -103,18 +116,12 @@ fn bits(o: &Outcome) -> Vec<u64> {
         v.extend(z.iter().flat_map(|z| [z.re.to_bits(), z.im.to_bits()]))
     };
     match o {
-        Outcome::Covariance(e) | Outcome::Intensity(e) => {
-            let CovarianceEstimate {
-                single,
-                multiple,
-                total,
-                paths,
-            } = e;
-            for m in [single, multiple, total] {
-                matrix_bits(m, &mut v);
-            }
-            v.push(*paths);
+        Outcome::Covariance(e, means) => {
+            covariance_bits(e, &mut v);
+            c(&means.values, &mut v);
+            v.push(u64::from(means.warning.is_some()));
         }
+        Outcome::Intensity(e) => covariance_bits(e, &mut v),
         Outcome::Fields(f) => {
             c(f.fields.as_slice(), &mut v);
             c(&f.mean, &mut v);
@@ -171,6 +178,14 @@ fn merged_shards_are_bitwise_the_single_run() {
                 "{kind:?}: {n} shards differ from the single run"
             );
         }
+        // Shards of different counts that tile the run: 0/2, then 2/4 and 3/4.
+        let mixed = vec![
+            shard(&p, kind, 3, 4, 1),
+            shard(&p, kind, 0, 2, 2),
+            shard(&p, kind, 2, 4, 1),
+        ];
+        let merged = merge(mixed, &over).unwrap();
+        assert_eq!(bits(&merged.outcome), whole_bits, "{kind:?}: 0/2, 2/4, 3/4");
     }
 }
 

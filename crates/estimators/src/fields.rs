@@ -8,8 +8,8 @@ use speckle_medium::Medium;
 use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::{
-    Batches, PartialRows, Poll, Progress, Shard, ShardError, assemble_rows, for_each_path,
-    run_ordered_range,
+    Batches, PairShare, PartialRows, Poll, Progress, Shard, ShardError, assemble_rows,
+    for_each_path, run_ordered_range,
 };
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -150,9 +150,11 @@ pub fn render_fields<M: Medium, P: PhaseFunction>(
 }
 
 /// Renders shard `shard` of [`render_fields`]: its range of realizations, each exactly as the
-/// single run computes it (the mean added when `add_mean`), so that [`FieldShard::merge`] of
-/// all shards is bitwise the single run's fields. A realization is the unit: there is nothing
-/// to split further when there are more shards than realizations (those shards are empty).
+/// single run computes it before the mean is added, and (with `add_mean`) the speckle means of
+/// its share of the pairs (`shard.units(J)`), so that the mean is computed once over all shards;
+/// [`FieldShard::merge`] of all shards adds it and is bitwise the single run's fields. A
+/// realization is the unit: there is nothing to split further when there are more shards than
+/// realizations (those shards are empty).
 pub fn render_fields_shard<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     options: &FieldOptions,
@@ -162,39 +164,65 @@ pub fn render_fields_shard<M: Medium, P: PhaseFunction>(
     render_rows(scene, options, progress, FIELD_TILE, None, Some(shard))
 }
 
-/// One shard of a field render: its realizations (rows) and the mean.
+/// One shard of a field render: its realizations (rows) without the mean, and the mean of its
+/// share of the pairs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FieldShard {
-    /// Its realizations among the run's, `units.len() x J`.
+    /// Its realizations among the run's, `units.len() x J`, before the mean is added.
     pub rows: PartialRows,
-    /// The speckle mean added to every row (zeros when `add_mean` was off).
-    pub mean: Vec<Complex64>,
+    /// Whether the run adds the speckle mean to every realization.
+    pub add_mean: bool,
+    /// With `add_mean`, the speckle means of the shard's share of the pairs; empty otherwise.
+    pub mean: PairShare,
     /// Sub-paths per realization.
     pub paths_per_realization: u64,
 }
 
 impl FieldShard {
     /// Merges the shards of one field render (in any order): bitwise the single run's fields.
-    /// An error names missing or overlapping shards by index.
-    pub fn merge(shards: &[FieldShard]) -> Result<FieldEstimate, EstimatorError> {
+    /// An error names missing or overlapping shards by index. The means of pairs that no
+    /// shard's share covers (shards of different counts) are computed by `mean_of`.
+    pub fn merge(
+        shards: &[FieldShard],
+        mean_of: impl FnMut(Range<usize>) -> Result<Vec<Complex64>, EstimatorError>,
+    ) -> Result<FieldEstimate, EstimatorError> {
         let rows: Vec<PartialRows> = shards.iter().map(|s| s.rows.clone()).collect();
-        let (fields, order) = assemble_rows(&rows, "realizations")?;
+        let (mut fields, order) = assemble_rows(&rows, "realizations")?;
         let first = &shards[order[0]];
-        if shards
-            .iter()
-            .any(|s| s.mean != first.mean || s.paths_per_realization != first.paths_per_realization)
-        {
+        if shards.iter().any(|s| {
+            s.add_mean != first.add_mean || s.paths_per_realization != first.paths_per_realization
+        }) {
             return Err(ShardError::Mismatch(
-                "the shards are of field renders with different means or paths per realization"
+                "the shards are of field renders with and without the mean, or with different \
+                 paths per realization"
                     .into(),
             )
             .into());
         }
+        let j = fields.cols();
+        let mean = if first.add_mean {
+            let shares: Vec<&PairShare> = shards.iter().map(|s| &s.mean).collect();
+            let mean = PairShare::assemble(&shares, j, mean_of)?;
+            add_to_rows(&mut fields, &mean);
+            mean
+        } else {
+            vec![Complex64::new(0.0, 0.0); j]
+        };
         Ok(FieldEstimate {
             fields,
-            mean: first.mean.clone(),
+            mean,
             paths_per_realization: first.paths_per_realization,
         })
+    }
+}
+
+/// Adds `mean` to every row of `fields` (as the single run does, after its paths).
+fn add_to_rows(fields: &mut CMatrix, mean: &[Complex64]) {
+    let j = mean.len();
+    for row in fields.as_mut_slice().chunks_exact_mut(j.max(1)) {
+        for (f, m) in row.iter_mut().zip(mean) {
+            *f += m;
+        }
     }
 }
 
@@ -208,14 +236,22 @@ fn render<M: Medium, P: PhaseFunction>(
     batch: Option<u64>,
 ) -> Result<FieldEstimate, EstimatorError> {
     let s = render_rows(scene, options, progress, max_tile, batch, None)?;
+    let mut fields = s.rows.rows;
+    let mean = if options.add_mean {
+        add_to_rows(&mut fields, &s.mean.values);
+        s.mean.values
+    } else {
+        vec![Complex64::new(0.0, 0.0); scene.len()]
+    };
     Ok(FieldEstimate {
-        fields: s.rows.rows,
-        mean: s.mean,
+        fields,
+        mean,
         paths_per_realization: s.paths_per_realization,
     })
 }
 
-/// [`render`] of the realizations of `shard` (all of them when `None`).
+/// [`render`] of the realizations of `shard` (all of them when `None`), without the mean, and
+/// with `add_mean` the means of the shard's share of the pairs (all of them when `None`).
 fn render_rows<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     options: &FieldOptions,
@@ -239,12 +275,16 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     }
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let j = scene.len();
-    let mean = if options.add_mean {
-        scene
-            .means_cancellable(&|| progress.cancelled())?
-            .ok_or(EstimatorError::Cancelled)?
-    } else {
-        vec![Complex64::new(0.0, 0.0); j]
+    let share = shard.map_or(0..j, |s| s.units(j));
+    let mean = PairShare {
+        values: if options.add_mean {
+            scene
+                .means_of(share.clone(), &|| progress.cancelled())?
+                .ok_or(EstimatorError::Cancelled)?
+        } else {
+            Vec::new()
+        },
+        pairs: if options.add_mean { share } else { 0..0 },
     };
     let tiles = tiles(scene, max_tile);
     let nt = tiles.len();
@@ -314,16 +354,6 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     if !done {
         return Err(EstimatorError::Cancelled);
     }
-    if options.add_mean {
-        for r in 0..units.len() {
-            for (f, m) in fields.as_mut_slice()[r * j..(r + 1) * j]
-                .iter_mut()
-                .zip(&mean)
-            {
-                *f += m;
-            }
-        }
-    }
     Ok(FieldShard {
         rows: PartialRows {
             shard,
@@ -331,6 +361,7 @@ fn render_rows<M: Medium, P: PhaseFunction>(
             total: options.realizations,
             rows: fields,
         },
+        add_mean: options.add_mean,
         mean,
         paths_per_realization: n,
     })

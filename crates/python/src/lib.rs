@@ -522,7 +522,7 @@ fn outcome_dict<'py>(py: Python<'py>, p: &Problem, o: &Outcome) -> PyResult<Boun
     let rows = |r: usize| [vec![r], shape.clone()].concat();
     d.set_item("kind", o.kind().command())?;
     match o {
-        Outcome::Covariance(e) => {
+        Outcome::Covariance(e, means) => {
             for (key, m) in [
                 ("cov", &e.total),
                 ("cov_single", &e.single),
@@ -534,9 +534,8 @@ fn outcome_dict<'py>(py: Python<'py>, p: &Problem, o: &Outcome) -> PyResult<Boun
                     c16(py, m.std_error.as_slice(), &[j, j])?,
                 )?;
             }
-            let (mean, warning) = means(py, p)?;
-            d.set_item("mean", c16(py, &mean, &[j])?)?;
-            d.set_item("mean_warning", warning)?;
+            d.set_item("mean", c16(py, &means.values, &[j])?)?;
+            d.set_item("mean_warning", means.warning.clone())?;
             d.set_item("paths", e.paths)?;
         }
         Outcome::Intensity(e) => {

@@ -9,8 +9,12 @@
 //!               text, numbers exact), where its input files are, wall time, and the sizes below
 //! payload       covariance, intensity: for each batch of the shard, its path count (u64) and
 //!               each part's sum in its kept entries (the upper triangle, row by row, of a
-//!               Hermitian sum; every entry otherwise), complex128 (re, im as f64);
-//!               fields: the rows (realizations x J complex128), then the mean (J complex128);
+//!               Hermitian sum; every entry otherwise), complex128 (re, im as f64); then, for a
+//!               covariance, the speckle means of the shard's share of the pairs (header
+//!               `data.mean_pairs`, complex128 each);
+//!               fields: the rows (realizations x J complex128, before the mean is added),
+//!               then with `data.add_mean` the means of the shard's share of the pairs
+//!               (`data.mean_pairs`, complex128 each);
 //!               wave: the rows (configurations x J complex128), the scatterer count of each
 //!               configuration (u64), the expected count (f64)
 //! ```
@@ -23,14 +27,16 @@ use num_complex::Complex64;
 use serde_json::{Value, json};
 use speckle_estimators::{CovarianceShard, FieldShard};
 use speckle_scene::Problem;
-use speckle_stats::{BatchSums, CMatrix, Layout, MomentsSpec, PartialMoments, PartialRows, Shard};
+use speckle_stats::{
+    BatchSums, CMatrix, Layout, MomentsSpec, PairShare, PartialMoments, PartialRows, Shard,
+};
 use speckle_wave::WaveShard;
 use std::io::Read;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 8] = b"SPKSHARD";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 /// What a shard file says about itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -68,6 +74,9 @@ pub struct Header {
 pub enum ShardData {
     /// Batch sums of a covariance or intensity render.
     Moments(CovarianceShard),
+    /// Batch sums of a covariance render and the speckle means of the shard's share of the
+    /// pairs, with the warning for NaN means.
+    Covariance(CovarianceShard, PairShare, Option<String>),
     /// Realizations of a field render.
     Fields(FieldShard),
     /// Configurations of the wave solver.
@@ -114,7 +123,7 @@ impl ShardFile {
     /// A shard of `p`'s render of `kind` with its numbers `data`, rendered in `wall` seconds.
     pub fn new(p: &Problem, kind: Kind, data: ShardData, wall: f64) -> Result<Self, RunError> {
         let (shard, units, total) = match &data {
-            ShardData::Moments(m) => (
+            ShardData::Moments(m) | ShardData::Covariance(m, ..) => (
                 m.moments.shard,
                 m.moments.units.clone(),
                 m.moments.spec.batches().count(),
@@ -165,13 +174,16 @@ impl ShardFile {
     fn header_json(&self) -> Value {
         let h = &self.header;
         let data = match &self.data {
-            ShardData::Moments(m) => {
-                let s = &m.moments.spec;
-                json!({"paths": s.paths, "j": s.j, "layout": layout_name(s.layout),
-                       "parts": s.parts, "with_total": s.with_total})
+            ShardData::Moments(m) => moments_json(m),
+            ShardData::Covariance(m, mean, warning) => {
+                let mut d = moments_json(m);
+                d["mean_pairs"] = json!([mean.pairs.start, mean.pairs.end]);
+                d["mean_warning"] = json!(warning);
+                d
             }
             ShardData::Fields(f) => {
-                json!({"j": f.rows.rows.cols(), "paths_per_realization": f.paths_per_realization})
+                json!({"j": f.rows.rows.cols(), "paths_per_realization": f.paths_per_realization,
+                       "add_mean": f.add_mean, "mean_pairs": [f.mean.pairs.start, f.mean.pairs.end]})
             }
             ShardData::Wave(w) => json!({"j": w.rows.rows.cols()}),
         };
@@ -211,18 +223,23 @@ impl ShardFile {
                 out.extend_from_slice(&z.im.to_le_bytes());
             }
         };
-        match &self.data {
-            ShardData::Moments(m) => {
-                for b in &m.moments.batches {
-                    out.extend_from_slice(&b.paths.to_le_bytes());
-                    for s in &b.sums {
-                        c16(&mut out, s);
-                    }
+        let batches = |out: &mut Vec<u8>, m: &CovarianceShard| {
+            for b in &m.moments.batches {
+                out.extend_from_slice(&b.paths.to_le_bytes());
+                for s in &b.sums {
+                    c16(out, s);
                 }
+            }
+        };
+        match &self.data {
+            ShardData::Moments(m) => batches(&mut out, m),
+            ShardData::Covariance(m, mean, _) => {
+                batches(&mut out, m);
+                c16(&mut out, &mean.values);
             }
             ShardData::Fields(f) => {
                 c16(&mut out, f.rows.rows.as_slice());
-                c16(&mut out, &f.mean);
+                c16(&mut out, &f.mean.values);
             }
             ShardData::Wave(w) => {
                 c16(&mut out, w.rows.rows.as_slice());
@@ -238,7 +255,13 @@ impl ShardFile {
     fn payload_len(&self) -> u64 {
         match &self.data {
             ShardData::Moments(m) => payload_moments(&m.moments.spec, m.moments.units.len()),
-            ShardData::Fields(f) => ((f.rows.rows.as_slice().len() + f.mean.len()) * 16) as u64,
+            ShardData::Covariance(m, mean, _) => {
+                payload_moments(&m.moments.spec, m.moments.units.len())
+                    + mean.values.len() as u64 * 16
+            }
+            ShardData::Fields(f) => {
+                ((f.rows.rows.as_slice().len() + f.mean.values.len()) * 16) as u64
+            }
             ShardData::Wave(w) => {
                 (w.rows.rows.as_slice().len() * 16 + w.scatterer_counts.len() * 8 + 8) as u64
             }
@@ -250,17 +273,24 @@ impl ShardFile {
         let mut r = bytes;
         let (header, desc) = read_header(&mut r, path)?;
         let available = r.len() as u64;
-        decode_payload(header, &desc, &mut r, available, path)
+        decode_payload(header, &desc, &mut r, available, path, &mut Vec::new())
     }
 
     /// Reads a shard file.
     pub fn read(path: &Path) -> Result<Self, RunError> {
+        Self::read_reusing(path, &mut Vec::new())
+    }
+
+    /// [`ShardFile::read`] into vectors taken from `pool` where it has some (a merge hands
+    /// each shard's batch sums back for the next: fresh pages for every shard cost as much as
+    /// reading them).
+    pub fn read_reusing(path: &Path, pool: &mut Vec<Vec<Complex64>>) -> Result<Self, RunError> {
         let file = std::fs::File::open(path).map_err(|e| bad(path, e.to_string()))?;
         let len = file.metadata().map_err(|e| bad(path, e.to_string()))?.len();
         let mut r = std::io::BufReader::with_capacity(1 << 20, file);
         let (header, desc) = read_header(&mut r, path)?;
         let rest = len.saturating_sub(24 + desc.header_len);
-        decode_payload(header, &desc, &mut r, rest, path)
+        decode_payload(header, &desc, &mut r, rest, path, pool)
     }
 
     /// Reads the header of a shard file only.
@@ -268,6 +298,13 @@ impl ShardFile {
         let file = std::fs::File::open(path).map_err(|e| bad(path, e.to_string()))?;
         Ok(read_header(&mut std::io::BufReader::new(file), path)?.0)
     }
+}
+
+/// The header's description of batch sums.
+fn moments_json(m: &CovarianceShard) -> Value {
+    let s = &m.moments.spec;
+    json!({"paths": s.paths, "j": s.j, "layout": layout_name(s.layout),
+           "parts": s.parts, "with_total": s.with_total})
 }
 
 /// Payload bytes of `batches` batches of a moments run.
@@ -366,8 +403,15 @@ fn read_header(r: &mut impl Read, path: &Path) -> Result<(Header, Desc), RunErro
 }
 
 /// Reads `n` complex numbers.
-fn read_c16(r: &mut impl Read, n: usize, buf: &mut Vec<u8>) -> std::io::Result<Vec<Complex64>> {
-    let mut out = Vec::with_capacity(n);
+fn read_c16(
+    r: &mut impl Read,
+    n: usize,
+    buf: &mut Vec<u8>,
+    pool: &mut Vec<Vec<Complex64>>,
+) -> std::io::Result<Vec<Complex64>> {
+    let mut out = pool.pop().unwrap_or_default();
+    out.clear();
+    out.reserve(n);
     const CHUNK: usize = 1 << 16;
     let mut left = n;
     while left > 0 {
@@ -395,6 +439,7 @@ fn decode_payload(
     r: &mut impl Read,
     available: u64,
     path: &Path,
+    pool: &mut Vec<Vec<Complex64>>,
 ) -> Result<ShardFile, RunError> {
     let d = &desc.json;
     let uint = |k: &str| {
@@ -407,6 +452,34 @@ fn decode_payload(
     };
     let j = uint("j")? as usize;
     let rows = header.units.len();
+    // The share of the pairs whose means the shard holds (covariance, fields with the mean).
+    let share = match d.get("mean_pairs") {
+        None | Some(Value::Null) => None,
+        Some(v) => {
+            let n = |i: usize| v.get(i).and_then(Value::as_u64).map(|x| x as usize);
+            match (n(0), n(1)) {
+                (Some(a), Some(b)) if a <= b && b <= j && header.shard.units(j) == (a..b) => {
+                    Some(a..b)
+                }
+                _ => {
+                    return Err(bad(
+                        path,
+                        "header `data.mean_pairs` is not the shard's pairs",
+                    ));
+                }
+            }
+        }
+    };
+    let add_mean = d.get("add_mean").and_then(Value::as_bool).unwrap_or(false);
+    if (header.kind == Kind::Covariance || (header.kind == Kind::Fields && add_mean))
+        != share.is_some()
+    {
+        return Err(bad(
+            path,
+            "header `data.mean_pairs` is missing or out of place",
+        ));
+    }
+    let share_len = share.as_ref().map_or(0, |s| s.len());
     let expected = match header.kind {
         Kind::Covariance | Kind::Intensity => {
             let layout = d
@@ -429,11 +502,11 @@ fn decode_payload(
             }
             Err(spec)
         }
-        Kind::Fields => Ok(((rows + 1) * j * 16) as u64),
+        Kind::Fields => Ok(((rows * j + share_len) * 16) as u64),
         Kind::Wave => Ok((rows * j * 16 + rows * 8 + 8) as u64),
     };
     let need = match &expected {
-        Err(spec) => payload_moments(spec, rows),
+        Err(spec) => payload_moments(spec, rows) + share_len as u64 * 16,
         Ok(n) => *n,
     };
     if available != need {
@@ -453,7 +526,7 @@ fn decode_payload(
             for _ in 0..rows {
                 let paths = read_u64(r).map_err(io)?;
                 let sums = (0..spec.parts)
-                    .map(|_| read_c16(r, spec.kept(), &mut buf))
+                    .map(|_| read_c16(r, spec.kept(), &mut buf, pool))
                     .collect::<Result<Vec<_>, _>>()
                     .map_err(io)?;
                 batches.push(BatchSums { paths, sums });
@@ -465,10 +538,21 @@ fn decode_payload(
                 batches,
             };
             moments.check().map_err(|e| bad(path, e.to_string()))?;
-            ShardData::Moments(CovarianceShard { moments })
+            let m = CovarianceShard { moments };
+            match share {
+                Some(pairs) => {
+                    let values = read_c16(r, pairs.len(), &mut buf, &mut Vec::new()).map_err(io)?;
+                    let warning = d
+                        .get("mean_warning")
+                        .and_then(Value::as_str)
+                        .map(str::to_string);
+                    ShardData::Covariance(m, PairShare { pairs, values }, warning)
+                }
+                None => ShardData::Moments(m),
+            }
         }
         Ok(_) => {
-            let values = read_c16(r, rows * j, &mut buf).map_err(io)?;
+            let values = read_c16(r, rows * j, &mut buf, &mut Vec::new()).map_err(io)?;
             let rows_of = PartialRows {
                 shard: header.shard,
                 units: header.units.clone(),
@@ -476,9 +560,12 @@ fn decode_payload(
                 rows: CMatrix::from_vec(rows, j, values),
             };
             if header.kind == Kind::Fields {
+                let pairs = share.unwrap_or(0..0);
+                let values = read_c16(r, pairs.len(), &mut buf, &mut Vec::new()).map_err(io)?;
                 ShardData::Fields(FieldShard {
                     rows: rows_of,
-                    mean: read_c16(r, j, &mut buf).map_err(io)?,
+                    add_mean,
+                    mean: PairShare { pairs, values },
                     paths_per_realization: uint("paths_per_realization")?,
                 })
             } else {

@@ -26,6 +26,7 @@ pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
 
+use num_complex::Complex64;
 use speckle_estimators::{
     CovarianceEstimate, CovarianceOptions, EstimatorError, FieldEstimate, FieldOptions,
     render_covariance, render_covariance_shard, render_fields, render_fields_shard,
@@ -33,8 +34,9 @@ use speckle_estimators::{
 };
 use speckle_scene::cost::{self, Command, Estimate};
 use speckle_scene::{LoadError, Problem, SceneError};
-use speckle_stats::{Progress, Shard, ShardError};
+use speckle_stats::{PairShare, Progress, Shard, ShardError};
 use speckle_wave::{WaveError, WaveEstimate, WaveOptions, render_wave, render_wave_shard};
+use std::ops::Range;
 use std::path::PathBuf;
 
 /// A render that can be sharded: the estimators of `speckle covariance`, `intensity`,
@@ -90,11 +92,30 @@ impl Kind {
     }
 }
 
+/// The speckle means of a render's pairs (closed form), with the warning for those that are NaN
+/// (`Problem::means_or_nan`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Means {
+    /// One per pair, in pair order.
+    pub values: Vec<Complex64>,
+    /// Why some are NaN, if they are.
+    pub warning: Option<String>,
+}
+
+/// The means of pairs `pairs` of `p`, cancelled when `progress` says so.
+pub fn means(p: &Problem, pairs: Range<usize>, progress: &dyn Progress) -> Result<Means, RunError> {
+    let (values, warning) = p
+        .means_or_nan_of(pairs, &|| progress.cancelled())
+        .map_err(|e| p.in_document(e))?
+        .ok_or(EstimatorError::Cancelled)?;
+    Ok(Means { values, warning })
+}
+
 /// The result of a whole render, or of a merge.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outcome {
-    /// A covariance.
-    Covariance(CovarianceEstimate),
+    /// A covariance and the speckle means of its pairs.
+    Covariance(CovarianceEstimate, Means),
     /// Intensities (the covariance diagonal; matrices are `J x 1`).
     Intensity(CovarianceEstimate),
     /// Field realizations.
@@ -107,7 +128,7 @@ impl Outcome {
     /// Which render it is the result of.
     pub fn kind(&self) -> Kind {
         match self {
-            Outcome::Covariance(_) => Kind::Covariance,
+            Outcome::Covariance(..) => Kind::Covariance,
             Outcome::Intensity(_) => Kind::Intensity,
             Outcome::Fields(_) => Kind::Fields,
             Outcome::Wave(_) => Kind::Wave,
@@ -279,11 +300,10 @@ pub fn guard(
 /// Renders the whole of `kind` for `p`.
 pub fn render(p: &Problem, kind: Kind, progress: &dyn Progress) -> Result<Outcome, RunError> {
     Ok(match kind {
-        Kind::Covariance => Outcome::Covariance(render_covariance(
-            &p.scene,
-            &covariance_options(p),
-            progress,
-        )?),
+        Kind::Covariance => {
+            let e = render_covariance(&p.scene, &covariance_options(p), progress)?;
+            Outcome::Covariance(e, means(p, 0..p.pairs(), progress)?)
+        }
         Kind::Intensity => Outcome::Intensity(render_intensity(
             &p.scene,
             &covariance_options(p),
@@ -307,12 +327,13 @@ pub fn render_shard(
 ) -> Result<ShardFile, RunError> {
     let start = std::time::Instant::now();
     let data = match kind {
-        Kind::Covariance => ShardData::Moments(render_covariance_shard(
-            &p.scene,
-            &covariance_options(p),
-            shard,
-            progress,
-        )?),
+        Kind::Covariance => {
+            let m = render_covariance_shard(&p.scene, &covariance_options(p), shard, progress)?;
+            // The shard's share of the means: the merge computes none of them.
+            let pairs = shard.units(p.pairs());
+            let Means { values, warning } = means(p, pairs.clone(), progress)?;
+            ShardData::Covariance(m, PairShare { pairs, values }, warning)
+        }
         Kind::Intensity => ShardData::Moments(render_intensity_shard(
             &p.scene,
             &covariance_options(p),

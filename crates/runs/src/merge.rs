@@ -1,10 +1,12 @@
 //! Merging shards into the single run's estimate.
 
-use crate::{Header, Kind, Outcome, RunError, ShardData, ShardFile, run_hash};
-use speckle_estimators::{CovarianceMerge, FieldShard};
+use crate::{Header, Kind, Means, Outcome, RunError, ShardData, ShardFile, run_hash};
+use num_complex::Complex64;
+use speckle_estimators::{CovarianceMerge, EstimatorError, FieldShard};
 use speckle_scene::{Overrides, Problem, load_str};
-use speckle_stats::ShardError;
+use speckle_stats::{NoProgress, PairShare, ShardError};
 use speckle_wave::WaveShard;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// The result of a merge: the problem the shards were rendered from (rebuilt from their
@@ -39,8 +41,13 @@ impl Source {
     }
 
     fn load(self) -> Result<ShardFile, RunError> {
+        self.load_reusing(&mut Vec::new())
+    }
+
+    /// [`Source::load`] into vectors of `pool` ([`ShardFile::read_reusing`]).
+    fn load_reusing(self, pool: &mut Vec<Vec<Complex64>>) -> Result<ShardFile, RunError> {
         match self {
-            Source::File(p) => ShardFile::read(&p),
+            Source::File(p) => ShardFile::read_reusing(&p, pool),
             Source::Memory(s) => Ok(*s),
         }
     }
@@ -127,17 +134,31 @@ fn merge_sources(
     let outcome = match kind {
         Kind::Covariance | Kind::Intensity => {
             let mut merge: Option<CovarianceMerge> = None;
+            let (mut shares, mut warning, mut pool) = (Vec::new(), None, Vec::new());
             for (_, s) in sources.by_ref() {
-                let ShardData::Moments(m) = s.load()?.data else {
-                    return Err(wrong());
+                let m = match (kind, s.load_reusing(&mut pool)?.data) {
+                    (Kind::Intensity, ShardData::Moments(m)) => m,
+                    (Kind::Covariance, ShardData::Covariance(m, share, w)) => {
+                        shares.push(share);
+                        warning = warning.or(w);
+                        m
+                    }
+                    _ => return Err(wrong()),
                 };
                 merge
                     .get_or_insert_with(|| CovarianceMerge::new(&m.moments.spec))
                     .add(&m)?;
+                pool.extend(m.moments.batches.into_iter().flat_map(|b| b.sums));
             }
             let est = merge.ok_or(ShardError::NoShards)?.finish()?;
             if kind == Kind::Covariance {
-                Outcome::Covariance(est)
+                let shares: Vec<&PairShare> = shares.iter().collect();
+                let values = PairShare::assemble(&shares, problem.pairs(), |r| {
+                    let m = crate::means(&problem, r, &NoProgress)?;
+                    warning = warning.take().or(m.warning);
+                    Ok::<_, RunError>(m.values)
+                })?;
+                Outcome::Covariance(est, Means { values, warning })
             } else {
                 Outcome::Intensity(est)
             }
@@ -149,7 +170,14 @@ fn merge_sources(
                     _ => Err(wrong()),
                 })
                 .collect::<Result<Vec<FieldShard>, RunError>>()?;
-            Outcome::Fields(FieldShard::merge(&parts)?)
+            let mean_of = |r: Range<usize>| {
+                problem
+                    .scene
+                    .means_of(r, &|| false)
+                    .map_err(EstimatorError::from)
+                    .map(Option::unwrap_or_default)
+            };
+            Outcome::Fields(FieldShard::merge(&parts, mean_of)?)
         }
         Kind::Wave => {
             let parts = sources

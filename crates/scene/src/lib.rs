@@ -27,6 +27,7 @@ use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
+use std::ops::Range;
 
 pub mod build;
 pub mod cost;
@@ -291,9 +292,25 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         M: Sync,
         P: Sync,
     {
+        self.means_of(0..self.pairs.len(), cancelled)
+    }
+
+    /// [`Scene::means_cancellable`] of the pairs `pairs` only (a shard's share): each pair's
+    /// mean is computed alone, so the values are bitwise those of all pairs at once.
+    ///
+    /// # Panics
+    /// If `pairs` is not a range of the scene's pairs.
+    pub fn means_of(
+        &self,
+        pairs: Range<usize>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<Vec<Complex64>>, SceneError>
+    where
+        M: Sync,
+        P: Sync,
+    {
         let k = self.wavenumber();
-        let each: Vec<Option<Complex64>> = self
-            .pairs
+        let each: Vec<Option<Complex64>> = self.pairs[pairs]
             .par_iter()
             .map(|&p| {
                 if cancelled() {

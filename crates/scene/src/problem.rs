@@ -20,6 +20,7 @@ use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Medium};
 use speckle_paths::Tracer;
 use speckle_phase::{Phase, PhaseFunction};
 use std::fmt::Write as _;
+use std::ops::Range;
 use std::path::Path;
 
 /// Bytes of covariance accumulators above which a `J x J` render is refused.
@@ -372,7 +373,21 @@ impl Problem {
         &self,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(Vec<Complex64>, Option<String>)>, SceneError> {
-        match self.scene.means_cancellable(cancelled) {
+        self.means_or_nan_of(0..self.pairs(), cancelled)
+    }
+
+    /// [`Problem::means_or_nan`] of the pairs `pairs` only (a shard's share), bitwise those
+    /// values.
+    ///
+    /// # Panics
+    /// If `pairs` is not a range of the scene's pairs.
+    #[allow(clippy::type_complexity)]
+    pub fn means_or_nan_of(
+        &self,
+        pairs: Range<usize>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<(Vec<Complex64>, Option<String>)>, SceneError> {
+        match self.scene.means_of(pairs.clone(), cancelled) {
             Ok(None) => Ok(None),
             Ok(Some(m)) => Ok(Some((m, None))),
             Err(SceneError::InvalidInput { field, reason }) if field == "medium" => {
@@ -381,9 +396,7 @@ impl Problem {
                      does not depend on it)"
                 );
                 // Pairs of this kind fail at once; the others are those of an exit leg.
-                let means = self
-                    .scene
-                    .pairs()
+                let means = self.scene.pairs()[pairs]
                     .iter()
                     .map(|&p| match self.scene.mean(p) {
                         Err(SceneError::InvalidInput { field, .. }) if field == "medium" => {

@@ -34,7 +34,7 @@ pub use matrix::{CMatrix, MatrixEstimate};
 pub use moments::{BatchSum, Buffers, Layout, Moments};
 pub use reduction::{BatchSums, MomentsReduction, MomentsSpec, PartialMoments};
 pub use rng::PathRng;
-pub use shard::{PartialRows, Shard, ShardError, assemble_rows};
+pub use shard::{PairShare, PartialRows, Shard, ShardError, assemble_rows};
 
 /// Errors of the statistics layer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -254,6 +254,44 @@ impl Moments {
         self.batches += 1;
     }
 
+    /// [`Moments::add_batch`] of sums given in their kept entries only: the upper triangle, row
+    /// by row, of a Hermitian layout (every entry of the others). The same arithmetic entry by
+    /// entry, so bitwise the same moments, without unpacking the triangle into a full buffer
+    /// (a merge of shards adds thousands of them).
+    pub fn add_packed(&mut self, n: u64, a: &[Complex64], b: Option<&[Complex64]>) {
+        if self.layout != Layout::Hermitian {
+            return self.add_batch(n, a, b);
+        }
+        let inv = 1.0 / n as f64;
+        let j = self.j;
+        // Row `r` of the triangle starts at `r j - r (r - 1) / 2` and holds `j - r` entries.
+        let start = |r: usize| r * j - r * r.saturating_sub(1) / 2;
+        let rows = (PARALLEL_ENTRIES / j.max(1)).max(1);
+        let len = rows * j;
+        let (sum, sq_re, sq_im) = (&mut self.sum, &mut self.sq_re, &mut self.sq_im);
+        sum.par_chunks_mut(len)
+            .zip(sq_re.par_chunks_mut(len))
+            .zip(sq_im.par_chunks_mut(len))
+            .enumerate()
+            .for_each(|(c, ((sum, sq_re), sq_im))| {
+                for i in 0..sum.len() / j {
+                    let r = c * rows + i;
+                    let full = i * j + r..(i + 1) * j;
+                    let kept = start(r)..start(r) + (j - r);
+                    add_span(
+                        &mut sum[full.clone()],
+                        &mut sq_re[full.clone()],
+                        &mut sq_im[full],
+                        &a[kept.clone()],
+                        b.map(|b| &b[kept]),
+                        inv,
+                    );
+                }
+            });
+        self.paths += n;
+        self.batches += 1;
+    }
+
     /// The estimate with standard errors (infinite with one batch): the `J x J` matrix (Hermitian
     /// for [`Layout::Hermitian`]), or for the diagonal layouts the diagonal as a `J x 1` column
     /// (real for [`Layout::HermitianDiagonal`]).

@@ -112,23 +112,6 @@ pub(crate) fn keep(spec: &MomentsSpec, full: &[Complex64]) -> Vec<Complex64> {
     }
 }
 
-/// Writes kept entries back into a full buffer (entries that are not kept are left as they are:
-/// the reduction never reads them).
-fn restore(spec: &MomentsSpec, kept: &[Complex64], full: &mut [Complex64]) {
-    match spec.layout {
-        Layout::Hermitian => {
-            let j = spec.j;
-            let mut at = 0;
-            for r in 0..j {
-                let w = j - r;
-                full[r * j + r..(r + 1) * j].copy_from_slice(&kept[at..at + w]);
-                at += w;
-            }
-        }
-        _ => full.copy_from_slice(kept),
-    }
-}
-
 /// The single run's reduction: batch sums added in batch order into one [`Moments`] per part
 /// and, with `with_total` and several parts, one of their sum.
 #[derive(Debug, Clone)]
@@ -138,8 +121,6 @@ pub struct MomentsReduction {
     total: Option<Moments>,
     /// The next batch expected.
     next: usize,
-    /// Full buffers to restore kept sums into (allocated on the first kept batch).
-    scratch: Vec<Vec<Complex64>>,
 }
 
 impl MomentsReduction {
@@ -151,7 +132,6 @@ impl MomentsReduction {
             moments: (0..spec.parts).map(|_| Moments::new(layout, j)).collect(),
             total: (spec.with_total && spec.parts > 1).then(|| Moments::new(layout, j)),
             next: 0,
-            scratch: Vec::new(),
         }
     }
 
@@ -167,14 +147,25 @@ impl MomentsReduction {
 
     /// Adds the next batch: `n` paths whose sums are `sums` (full buffers of the layout).
     pub(crate) fn add(&mut self, n: u64, sums: &[Vec<Complex64>]) {
+        self.add_with(n, sums, Moments::add_batch);
+    }
+
+    /// Adds the next batch, `n` paths whose sums are `sums` given by `add` (full buffers with
+    /// [`Moments::add_batch`], kept entries with [`Moments::add_packed`]).
+    fn add_with(
+        &mut self,
+        n: u64,
+        sums: &[Vec<Complex64>],
+        add: fn(&mut Moments, u64, &[Complex64], Option<&[Complex64]>),
+    ) {
         for (m, s) in self.moments.iter_mut().zip(sums) {
-            m.add_batch(n, s, None);
+            add(m, n, s, None);
         }
         if let Some(t) = &mut self.total {
             // Two parts are summed entry by entry inside the moments (as the covariance always
             // did); more are added up first.
             match sums {
-                [a, b] => t.add_batch(n, a, Some(b)),
+                [a, b] => add(t, n, a, Some(b)),
                 _ => {
                     let mut sum = sums[0].clone();
                     for s in &sums[1..] {
@@ -182,7 +173,7 @@ impl MomentsReduction {
                             *x += y;
                         }
                     }
-                    t.add_batch(n, &sum, None);
+                    add(t, n, &sum, None);
                 }
             }
         }
@@ -209,20 +200,9 @@ impl MomentsReduction {
                 p.shard, p.units, self.next
             )));
         }
-        let len = self.spec.layout.len(self.spec.j);
-        if self.scratch.is_empty() {
-            self.scratch = (0..self.spec.parts)
-                .map(|_| vec![Complex64::ZERO; len])
-                .collect();
-        }
-        let mut scratch = std::mem::take(&mut self.scratch);
         for b in &p.batches {
-            for (full, kept) in scratch.iter_mut().zip(&b.sums) {
-                restore(&self.spec, kept, full);
-            }
-            self.add(b.paths, &scratch);
+            self.add_with(b.paths, &b.sums, Moments::add_packed);
         }
-        self.scratch = scratch;
         Ok(())
     }
 

@@ -11,6 +11,7 @@
 //! its result is bitwise that of the single run for any number of shards and threads.
 
 use crate::CMatrix;
+use num_complex::Complex64;
 use std::fmt;
 use std::ops::Range;
 use std::str::FromStr;
@@ -280,9 +281,96 @@ pub fn assemble_rows(
     Ok((CMatrix::from_vec(total, j, data), idx))
 }
 
+/// Per-pair values (the speckle means) that the shards of a run computed for their shares of
+/// the pairs (shard `i` of `n` computes pairs `Shard::units(J)`), so that no shard computes them
+/// all: each pair's value is computed alone, so any shard's is bitwise the single run's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PairShare {
+    /// The pairs.
+    pub pairs: Range<usize>,
+    /// Their values.
+    pub values: Vec<Complex64>,
+}
+
+impl PairShare {
+    /// The `J` values of a run from its shards' shares (in any order). Overlapping shares must
+    /// agree bitwise; pairs no share covers (shards of different counts can leave such gaps)
+    /// are computed by `fill` (given each gap).
+    pub fn assemble<E: From<ShardError>>(
+        shares: &[&PairShare],
+        j: usize,
+        mut fill: impl FnMut(Range<usize>) -> Result<Vec<Complex64>, E>,
+    ) -> Result<Vec<Complex64>, E> {
+        let mut out: Vec<Option<Complex64>> = vec![None; j];
+        for s in shares {
+            if s.pairs.end > j || s.values.len() != s.pairs.len() {
+                return Err(ShardError::Mismatch(format!(
+                    "a shard holds {} values for pairs {:?} of a run of {j} pairs",
+                    s.values.len(),
+                    s.pairs
+                ))
+                .into());
+            }
+            for (slot, v) in out[s.pairs.clone()].iter_mut().zip(&s.values) {
+                match slot {
+                    Some(w)
+                        if w.re.to_bits() != v.re.to_bits() || w.im.to_bits() != v.im.to_bits() =>
+                    {
+                        return Err(ShardError::Mismatch(
+                            "two shards hold different values for the same pair".into(),
+                        )
+                        .into());
+                    }
+                    _ => *slot = Some(*v),
+                }
+            }
+        }
+        let mut at = 0;
+        while at < j {
+            if out[at].is_some() {
+                at += 1;
+                continue;
+            }
+            let end = (at..j).find(|&k| out[k].is_some()).unwrap_or(j);
+            let values = fill(at..end)?;
+            for (slot, v) in out[at..end].iter_mut().zip(values) {
+                *slot = Some(v);
+            }
+            at = end;
+        }
+        Ok(out.into_iter().map(|v| v.unwrap_or_default()).collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pair_shares_assemble_and_fill_gaps() {
+        let c = |x: f64| Complex64::new(x, -x);
+        let a = PairShare {
+            pairs: 0..2,
+            values: vec![c(0.0), c(1.0)],
+        };
+        let b = PairShare {
+            pairs: 3..5,
+            values: vec![c(3.0), c(4.0)],
+        };
+        let mut gaps = Vec::new();
+        let v = PairShare::assemble::<ShardError>(&[&b, &a], 5, |r| {
+            gaps.push(r.clone());
+            Ok(r.map(|k| c(k as f64)).collect())
+        })
+        .unwrap();
+        assert_eq!(v, (0..5).map(|k| c(k as f64)).collect::<Vec<_>>());
+        assert_eq!(gaps, vec![2..3]);
+        let bad = PairShare {
+            pairs: 1..2,
+            values: vec![c(7.0)],
+        };
+        assert!(PairShare::assemble::<ShardError>(&[&a, &bad], 2, |_| Ok(vec![])).is_err());
+    }
 
     #[test]
     fn shards_tile_the_units() {

@@ -2,7 +2,8 @@
 
 use super::*;
 use crate::error;
-use speckle::estimators::{CovarianceEstimate, EstimatorError, render_covariance};
+use speckle::estimators::{CovarianceEstimate, render_covariance};
+use speckle::runs::{Means, RunError};
 use speckle::scene::npy::encode_c16;
 
 /// Arguments of `covariance` and `intensity`.
@@ -48,23 +49,26 @@ pub fn render(p: &Problem, run: RunOptions) -> anyhow::Result<()> {
         return shard(p, Kind::Covariance, s, run, staged);
     }
     let opts = options(p);
-    let ((est, mean), wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
+    let ((est, means), wall) = run.timed(p, opts.paths, "paths", error::runs, |pr| {
         let est = render_covariance(&p.scene, &opts, pr)?;
-        Ok::<_, EstimatorError>((est, means(p, pr)?))
+        Ok::<_, RunError>((est, speckle::runs::means(p, 0..p.pairs(), pr)?))
     })?;
-    write(p, staged, &est, &mean, wall)
+    write(p, staged, &est, &means, wall)
 }
 
 /// Writes the covariance `est` of `p` (rendered, or merged from shards) and the speckle means
-/// `mean` of its pairs.
+/// of its pairs (a warning printed where they are NaN).
 pub fn write(
     p: &Problem,
     mut staged: Staged,
     est: &CovarianceEstimate,
-    mean: &[Complex64],
+    means: &Means,
     wall: f64,
 ) -> anyhow::Result<()> {
-    let j = p.pairs();
+    let (j, mean) = (p.pairs(), &means.values[..]);
+    if let Some(w) = &means.warning {
+        tell!("warning: {w}");
+    }
     let n = &p.name;
     let mut files = json!({
         "layout": "cov*: complex128 (J, J), row j1 column j2 = pairs[j1], pairs[j2]; \

@@ -43,11 +43,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, wall) = (&m.problem, m.shard_wall_time_s);
     let staged = prepare(p.out_dir())?;
     match &m.outcome {
-        Outcome::Covariance(e) => {
-            let progress = CliProgress::new(0, "", "mean", true, None);
-            let mean = means(p, &progress).map_err(error::estimator)?;
-            covariance::write(p, staged, e, &mean, wall)
-        }
+        Outcome::Covariance(e, means) => covariance::write(p, staged, e, means, wall),
         Outcome::Intensity(e) => intensity::write(p, staged, e, wall),
         Outcome::Fields(e) => fields::write(p, staged, e, wall),
         Outcome::Wave(e) => wave::write(p, staged, e, wall),

@@ -74,12 +74,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 }
 
 /// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
-pub fn write(
-    p: &Problem,
-    mut staged: Staged,
-    est: &WaveEstimate,
-    wall: f64,
-) -> anyhow::Result<()> {
+pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
     let scene = p.box_scene()?;
     let (j, rr) = (p.pairs(), p.render.configurations);
