@@ -109,9 +109,19 @@ fn shard_error(py: Python<'_>, e: LibShardError) -> PyErr {
     err
 }
 
+/// The overrides of a scene loaded from Python before any keyword: a Python program names its
+/// own files, so its scenes may read input files and write outputs anywhere (the command
+/// line's `--allow-outside`); `allow_outside=False` confines them as the command line does.
+fn python_defaults() -> Overrides {
+    Overrides {
+        allow_outside: true,
+        ..Overrides::default()
+    }
+}
+
 /// Command-line-style overrides from keyword values (`None` values are ignored).
 fn overrides(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
-    let mut o = Overrides::default();
+    let mut o = python_defaults();
     let Some(d) = d else { return Ok(o) };
     for (k, v) in d.iter() {
         if v.is_none() {
@@ -138,6 +148,7 @@ fn overrides(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Override
             "paths_per_realization" => o.paths_per_realization = Some(count()?),
             "no_mean" => o.no_mean = flag()?,
             "configurations" => o.configurations = Some(count()? as usize),
+            "allow_outside" => o.allow_outside = flag()?,
             _ => {
                 return Err(scene_error(
                     py,
@@ -796,12 +807,12 @@ fn merge<'py>(
     let merged = py
         .detach(|| {
             if files.is_empty() {
-                runs::merge_files(&paths, &Overrides::default())
+                runs::merge_files(&paths, &python_defaults())
             } else {
                 for path in &paths {
                     files.push(ShardFile::read(path)?);
                 }
-                runs::merge(files, &Overrides::default())
+                runs::merge(files, &python_defaults())
             }
         })
         .map_err(|e| run_error(py, e))?;

@@ -73,7 +73,7 @@ def _binary() -> Path:
     if env:
         return Path(env)
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    for profile in ("release", "debug"):
+    for profile in ("ci", "release", "debug"):
         p = target / profile / "speckle"
         if p.exists():
             return p

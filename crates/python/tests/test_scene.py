@@ -281,6 +281,10 @@ def test_numpy_values_none_and_paths_are_accepted(tmp_path):
     (tmp_path / "amp.csv").write_text("theta_deg,re,im\n0,1,0\n180,0.5,0\n")
     d["phase"] = {"type": "tabulated", "file": tmp_path / "amp.csv"}
     assert speckle.Scene.from_dict(d).pairs == 12
+    # Confined as on the command line: the file is outside the dict's folder (the current one).
+    with pytest.raises(speckle.SceneError) as e:
+        speckle.Scene.from_dict(d, allow_outside=False)
+    assert e.value.field == "phase.file" and "outside" in str(e.value)
 
 
 def test_dict_toml_file_and_resolved_scene_agree(tiny_file):

@@ -274,10 +274,28 @@ pub fn estimate(
             speckle_wave::estimate_cost(&scene, p.render.configurations, threads)?.estimate(0.0)
         }
     };
-    Ok(match shard {
-        Some(s) => e.shard_of(s.count),
-        None => e,
-    })
+    let Some(s) = shard else { return Ok(e) };
+    let mut e = e.shard_of(s.count);
+    if let Kind::Covariance | Kind::Intensity = kind {
+        // A shard keeps each of its batches' two sums (single and multiple scattering) in their
+        // kept entries, once as numbers and once as the file's bytes.
+        let batches = speckle_stats::Batches::about(p.render.paths, speckle_stats::TARGET_BATCHES);
+        let j = p.pairs() as f64;
+        let kept = if kind == Kind::Covariance {
+            j * (j + 1.0) / 2.0
+        } else {
+            j
+        };
+        let bytes = 2.0 * s.units(batches.count()).len() as f64 * 2.0 * kept * 16.0;
+        e.bytes += bytes;
+        if bytes > e.bytes / 2.0 {
+            e.memory_field = format!(
+                "shard (its {} batches' sums; more shards hold fewer)",
+                s.units(batches.count()).len()
+            );
+        }
+    }
+    Ok(e)
 }
 
 /// Before any work: refuses a render of `kind` (or a shard of it) whose results would not fit
