@@ -6,20 +6,10 @@
 //!
 //! Run time (release, 2 cores): a few seconds.
 
+mod common;
+
+use common::{speckle, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn speckle(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_speckle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the speckle binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn ok(dir: &Path, args: &[&str]) {
     let o = speckle(dir, args);
