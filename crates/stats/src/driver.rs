@@ -103,7 +103,8 @@ pub fn for_each_path(
 /// [`Moments`].
 ///
 /// Returns the estimate of every part and, if `with_total`, of their sum (whose standard errors
-/// account for the correlation of the parts within a path); `None` if cancelled.
+/// account for the correlation of the parts within a path); `None` if cancelled. This is
+/// [`batch_moments_grouped`] with one group of `parts` parts of one layout.
 #[allow(clippy::too_many_arguments)]
 pub fn batch_moments<S, I, W>(
     paths: u64,
@@ -119,12 +120,67 @@ where
     I: Fn() -> S + Sync,
     W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
 {
+    let groups = PartGroups {
+        parts: vec![(layout, j); parts],
+        group: if with_total { parts.max(1) } else { 1 },
+    };
+    let mut out = batch_moments_grouped(paths, &groups, init, path, progress)?;
+    if with_total {
+        let (parts, total) = out.pop().unwrap_or_default();
+        Some((parts, total))
+    } else {
+        let parts = out.into_iter().flat_map(|(p, _)| p).collect();
+        Some((parts, None))
+    }
+}
+
+/// The parts of a [`batch_moments_grouped`] estimate: the [`Layout`] and vector length `J` of
+/// each part, and the parts cut into consecutive groups of `group` parts that share a total
+/// (for example the single- and multiple-scattering parts of the covariance at each of several
+/// time lags: `group = 2`, one total per lag). The parts of a group share layout and length.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PartGroups {
+    /// The layout and vector length of each part.
+    pub parts: Vec<(Layout, usize)>,
+    /// Parts per group (at least 1; the number of parts is a multiple of it).
+    pub group: usize,
+}
+
+/// [`batch_moments`] over groups of parts, each with its own total: returns, per group, the
+/// estimates of its parts and of their sum (the only part's estimate again for a group of one),
+/// `None` if cancelled. Part `p` accumulates in `sums[p]`, of layout and length
+/// `groups.parts[p]`.
+///
+/// A group of two parts is totalled entry by entry inside the moments exactly as
+/// [`batch_moments`] totals two parts, so the estimates of a group are bitwise those of a
+/// [`batch_moments`] render of its parts alone.
+///
+/// # Panics
+/// If the parts do not split into whole groups, or the parts of a group differ in layout.
+pub fn batch_moments_grouped<S, I, W>(
+    paths: u64,
+    groups: &PartGroups,
+    init: I,
+    path: W,
+    progress: &dyn Progress,
+) -> Option<Vec<(Vec<MatrixEstimate>, Option<MatrixEstimate>)>>
+where
+    I: Fn() -> S + Sync,
+    W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
+{
+    let layouts = &groups.parts;
+    let g = groups.group.max(1);
+    assert_eq!(layouts.len() % g, 0, "parts must split into whole groups");
+    for chunk in layouts.chunks(g) {
+        assert!(chunk.iter().all(|l| *l == chunk[0]), "one layout per group");
+    }
     let batches = Batches::about(paths, TARGET_BATCHES);
     let buffers = Buffers::default();
     let run = |b: usize| {
         let range = batches.range(b);
-        let mut sums: Vec<BatchSum> = (0..parts)
-            .map(|_| BatchSum::new(layout, j, &buffers))
+        let mut sums: Vec<BatchSum> = layouts
+            .iter()
+            .map(|&(layout, j)| BatchSum::new(layout, j, &buffers))
             .collect();
         let mut state = init();
         for_each_path(range.clone(), progress, |n, poll| {
@@ -134,17 +190,21 @@ where
         let sums: Vec<Vec<Complex64>> = sums.into_iter().map(BatchSum::finish).collect();
         Some((range.end - range.start, sums))
     };
-    let mut moments: Vec<Moments> = (0..parts).map(|_| Moments::new(layout, j)).collect();
-    let mut total = (with_total && parts > 1).then(|| Moments::new(layout, j));
-    let bytes = parts.max(1) * layout.len(j) * 16;
+    let mut moments: Vec<Moments> = layouts.iter().map(|&(l, j)| Moments::new(l, j)).collect();
+    let mut totals: Vec<Option<Moments>> = layouts
+        .chunks(g)
+        .map(|c| (g > 1).then(|| Moments::new(c[0].0, c[0].1)))
+        .collect();
+    let bytes = layouts.iter().map(|&(l, j)| l.len(j)).sum::<usize>().max(1) * 16;
     let done = run_ordered(batches.count(), bytes, run, |_, (n, sums)| {
         for (m, s) in moments.iter_mut().zip(&sums) {
             m.add_batch(n, s, None);
         }
-        if let Some(t) = &mut total {
+        for (t, sums) in totals.iter_mut().zip(sums.chunks(g)) {
+            let Some(t) = t else { continue };
             // Two parts are summed entry by entry inside the moments (as the covariance always
             // did); more are added up first.
-            match sums.as_slice() {
+            match sums {
                 [a, b] => t.add_batch(n, a, Some(b)),
                 _ => {
                     let mut sum = sums[0].clone();
@@ -164,16 +224,19 @@ where
     if !done {
         return None;
     }
-    let parts: Vec<MatrixEstimate> = moments.into_iter().map(Moments::finish).collect();
-    let total = if with_total {
-        Some(match total {
-            Some(t) => t.finish(),
-            None => parts[0].clone(),
+    let mut parts = moments.into_iter().map(Moments::finish);
+    let out = totals
+        .into_iter()
+        .map(|t| {
+            let group: Vec<MatrixEstimate> = parts.by_ref().take(g).collect();
+            let total = match t {
+                Some(t) => t.finish(),
+                None => group[0].clone(),
+            };
+            (group, Some(total))
         })
-    } else {
-        None
-    };
-    Some((parts, total))
+        .collect();
+    Some(out)
 }
 
 /// Memory allowed for batch results held at once.

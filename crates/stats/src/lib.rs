@@ -23,8 +23,8 @@ pub mod rng;
 
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
 pub use driver::{
-    Batches, NoProgress, POLL_INTERVAL, Poll, Progress, TARGET_BATCHES, batch_moments,
-    for_each_path, run_ordered,
+    Batches, NoProgress, POLL_INTERVAL, PartGroups, Poll, Progress, TARGET_BATCHES, batch_moments,
+    batch_moments_grouped, for_each_path, run_ordered,
 };
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};
