@@ -110,12 +110,14 @@ fn run(case: &Case) {
     }
     println!("  largest deviation {worst:.2} combined standard errors");
     assert!(failures.is_empty(), "{}: {failures:#?}", case.name);
-    // The comparison must test decorrelation: the last time is well decorrelated.
+    // The comparison must test the motion: at the last time the correlation has moved far
+    // from C(0) (decayed, or, for a uniform drift seen by a plane wave and far-field sensors,
+    // rotated by the Doppler phase with little decay).
     let (c0, _) = w.correlation(0, 0, 0, 0);
     let (ct, _) = w.correlation(0, 0, times.len() - 1, 0);
     assert!(
-        ct.norm() < 0.7 * c0.re,
-        "{}: too little decorrelation",
+        (ct - c0).norm() > 0.3 * c0.re,
+        "{}: the correlation hardly changed ({ct} against {c0})",
         case.name
     );
 }
@@ -173,28 +175,35 @@ fn flatland_brownian_and_drift() {
     }
 }
 
-/// Brownian motion alone, and drift alone (ignored in CI; `validation/run`).
+/// A heavy case of one motion (20 000 configurations, 2 million paths per scene).
+fn heavy(name: &str, motion: Motion) {
+    for (scene, what) in flatland().into_iter().zip(["points", "plane wave"]) {
+        run(&Case {
+            name: &format!("{name}, {what}"),
+            scene,
+            motion,
+            times: vec![0.0, 0.5, 1.0, 2.0],
+            configurations: 20_000,
+            paths: 2_000_000,
+        });
+    }
+}
+
+/// Brownian motion alone (ignored in CI; `validation/run`).
 #[test]
 #[ignore]
-fn flatland_brownian_only_and_linear_only() {
-    for (name, motion) in [
-        ("2D, Brownian D 0.015", Motion::brownian(0.015).unwrap()),
-        (
-            "2D, linear U (1, 0)",
-            Motion::new(0.0, DVec3::new(1.0, 0.0, 0.0)).unwrap(),
-        ),
-    ] {
-        for (scene, what) in flatland().into_iter().zip(["points", "plane wave"]) {
-            run(&Case {
-                name: &format!("{name}, {what}"),
-                scene,
-                motion,
-                times: vec![0.0, 0.5, 1.0, 2.0],
-                configurations: 20_000,
-                paths: 2_000_000,
-            });
-        }
-    }
+fn flatland_brownian_only() {
+    heavy("2D, Brownian D 0.015", Motion::brownian(0.015).unwrap());
+}
+
+/// Drift alone (ignored in CI; `validation/run`).
+#[test]
+#[ignore]
+fn flatland_linear_only() {
+    heavy(
+        "2D, linear U (1, 0)",
+        Motion::new(0.0, DVec3::new(1.0, 0.0, 0.0)).unwrap(),
+    );
 }
 
 /// A 3D cube of 8 wavelengths, mean free path 8: a plane wave with far-field sensors in
