@@ -12,6 +12,8 @@
 //! - [`stats`]: random streams, batch-means accumulation and the deterministic batch driver;
 //! - [`endpoints`]: sources and sensors, their connections to the medium and mean fields;
 //! - [`paths`]: volumetric sub-path sampling;
+//! - [`motion`]: moving scatterers: motion models, decorrelation factors, `g1`, `g2`, `K(T)`
+//!   (Bar et al. 2023);
 //! - [`scene`]: the problem description: the scene file format, its validation and builders,
 //!   a validated scene;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
@@ -28,6 +30,7 @@
 pub use speckle_endpoints as endpoints;
 pub use speckle_estimators as estimators;
 pub use speckle_medium as medium;
+pub use speckle_motion as motion;
 pub use speckle_paths as paths;
 pub use speckle_phase as phase;
 pub use speckle_runs as runs;

@@ -61,6 +61,9 @@ enum Command {
     /// Render the speckle intensity of every pair alone (the covariance diagonal; O(J) per
     /// vertex, for many sensors).
     Intensity(covariance::Args),
+    /// Temporal field correlations of moving scatterers (Bar et al. 2023): C(t) and
+    /// g1(t) = C(t) / C(0) of every pair at the scene's `[motion]` lags.
+    G1(covariance::Args),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(fields::Args),
     /// Render the single-scattering covariance alone (Eq. 41; no path tracing).
@@ -104,6 +107,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Covariance(a) => covariance::run(&a),
         Command::Intensity(a) => intensity::run(&a),
+        Command::G1(a) => g1::run(&a),
         Command::Fields(a) => fields::run(&a),
         Command::Single(a) => single::run(&a),
         Command::Mean(a) => mean::run(&a),

@@ -35,7 +35,7 @@ impl Cvec {
     }
 
     #[inline]
-    fn get(&self, i: usize) -> Complex64 {
+    pub(crate) fn get(&self, i: usize) -> Complex64 {
         Complex64::new(self.re[i], self.im[i])
     }
 }
@@ -259,6 +259,24 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             c.first_amp = table;
         }
         c
+    }
+
+    /// The sources of the tile, as the connector connects them.
+    pub(crate) fn sources(&self) -> &Endpoints<'s, M> {
+        &self.sources
+    }
+
+    /// The sensors of the tile, as the connector connects them.
+    pub(crate) fn sensors(&self) -> &Endpoints<'s, M> {
+        &self.sensors
+    }
+
+    /// The local source and sensor of local pair `i`.
+    pub(crate) fn pair_ends(&self, i: usize) -> (usize, usize) {
+        match &self.pairs {
+            PairMap::Grid { sensors } => (i / sensors, i % sensors),
+            PairMap::List { source, sensor } => (source[i] as usize, sensor[i] as usize),
+        }
     }
 
     /// Calls `f(i, s, v)` for every local pair `i` with local source `s` and sensor `v`.

@@ -15,6 +15,8 @@
 //! - [`render_single_scattering`]: the single-scattering covariance of Eq. 41 alone, without
 //!   path tracing.
 //! - [`render_fields`]: realizations of the field vector (Alg. 2) whose covariance is the above.
+//! - [`render_correlation`]: the spatio-temporal covariance `C[j, k](t)` of moving scatterers
+//!   (Bar et al. 2023) at a list of time lags, every lag from the same paths.
 //!
 //! Design decision: every estimator is built on one per-vertex connection routine
 //! ([`Scene`]'s sources and sensors connected to `x1` and `x_b`), and one deterministic batch
@@ -41,9 +43,11 @@
 #![deny(missing_docs)]
 
 mod connect;
+mod correlation;
 mod covariance;
 mod fields;
 
+pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_correlation};
 pub use covariance::{
     CovarianceEstimate, CovarianceMerge, CovarianceOptions, CovarianceShard, render_covariance,
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,

@@ -457,6 +457,44 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
             refused(e)?;
         }
     }
+    if let Some(m) = &p.motion {
+        match p.estimate(Command::G1, 1) {
+            Ok(e) if e.seconds < 0.2 && e.bytes < 5e8 => {
+                let opts = CovarianceOptions {
+                    paths: 16,
+                    seed: p.render.seed,
+                    coherence: p.render.coherence,
+                    sampling: p.render.sampling,
+                };
+                let deadline = Deadline(Instant::now() + Duration::from_secs(HANG_SECONDS / 2));
+                let entries = speckle::estimators::Entries::Diagonal;
+                match speckle::estimators::render_correlation(
+                    &p.scene, &m.model, &m.lags, &entries, &opts, &deadline,
+                ) {
+                    Ok(est) => {
+                        for l in 0..m.lags.len() {
+                            for e in 0..p.pairs() {
+                                let (v, _) = est.total(l, e);
+                                if !(v.re.is_finite() && v.im.is_finite()) {
+                                    return Err(Finding::NotFinite(format!("g1 correlation {v}")));
+                                }
+                            }
+                        }
+                    }
+                    Err(speckle::estimators::EstimatorError::Cancelled) => {
+                        return Err(Finding::Hang);
+                    }
+                    Err(speckle::estimators::EstimatorError::InvalidInput { field, .. })
+                        if good_field(&field) => {}
+                    Err(e) => {
+                        return Err(Finding::Unnamed(format!("g1 render failed: {e}")));
+                    }
+                }
+            }
+            Ok(_) => {}
+            Err(e) => refused(e)?,
+        }
+    }
     if cheap[0] {
         let opts = CovarianceOptions {
             paths: 16,

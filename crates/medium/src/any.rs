@@ -120,6 +120,13 @@ impl Medium for AnyMedium {
     fn sample_type(&self, x: DVec3, u: f64) -> usize {
         delegate!(self, m => m.sample_type(x, u))
     }
+    fn materials(&self) -> usize {
+        delegate!(self, m => m.materials())
+    }
+    #[inline]
+    fn material(&self, x: DVec3) -> usize {
+        delegate!(self, m => m.material(x))
+    }
     fn type_probabilities(&self, x: DVec3, out: &mut [f64]) {
         delegate!(self, m => m.type_probabilities(x, out))
     }

@@ -755,6 +755,19 @@ impl Medium for VoxelGrid {
     fn type_probabilities(&self, x: DVec3, out: &mut [f64]) {
         self.mix_at(x).probabilities(out);
     }
+
+    fn materials(&self) -> usize {
+        self.mixes.len()
+    }
+
+    #[inline]
+    fn material(&self, x: DVec3) -> usize {
+        if self.mix_id.is_empty() {
+            0
+        } else {
+            self.mix_id[self.voxel_clamped(x)] as usize
+        }
+    }
 }
 
 impl VoxelGrid {

@@ -182,6 +182,19 @@ pub trait Medium: Send + Sync {
         out.fill(0.0);
         out[0] = 1.0;
     }
+
+    /// Number of materials the medium is made of (the materials of a [`VoxelGrid`] built
+    /// [`VoxelGrid::from_materials`]; one otherwise). Properties that are not optical, such as
+    /// the motion of the scatterers (`speckle-motion`), are given per material.
+    fn materials(&self) -> usize {
+        1
+    }
+
+    /// The index of the material at `x`, below [`Medium::materials`] (0 in a medium of one
+    /// material; points outside the medium get the material of the nearest voxel).
+    fn material(&self, _x: DVec3) -> usize {
+        0
+    }
 }
 
 #[cfg(test)]

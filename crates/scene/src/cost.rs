@@ -185,6 +185,8 @@ pub enum Command {
     Fields,
     /// `speckle mean`.
     Mean,
+    /// `speckle g1` (temporal correlations of moving scatterers at `motion.lags`).
+    G1,
 }
 
 /// The optical extents of the medium along each axis, its albedo and its extinction, with a
@@ -302,7 +304,7 @@ impl Problem {
                 let s = self.png_scale(j, j)?;
                 Ok((1, (j * s) as f64 * (j * s) as f64))
             }
-            Command::Mean => Ok((0, 0.0)),
+            Command::Mean | Command::G1 => Ok((0, 0.0)),
             Command::Intensity | Command::Fields => {
                 let Some(g) = self.png_grid() else {
                     return Ok((0, 0.0));
@@ -361,7 +363,7 @@ impl Problem {
         let fixed = self.medium_bytes() + self.endpoint_bytes() + 2.0 * png_pixels;
         let traced = matches!(
             command,
-            Command::Covariance | Command::Intensity | Command::Fields
+            Command::Covariance | Command::Intensity | Command::Fields | Command::G1
         );
         let vertices = if traced {
             self.check_path_length()?
@@ -388,6 +390,24 @@ impl Problem {
                 let bytes = 16.0 * j * (8.0 + 4.0 * threads);
                 let per_path = vertices * (VERTEX_S + per_vertex_connect + 2.0 * j * PAIR_S);
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
+            }
+            Command::G1 => {
+                // Per lag, three estimates of J entries and the batches in flight; with drift
+                // both copies of every lag connect to every endpoint at both end vertices.
+                let (lags, drift) = self
+                    .motion
+                    .as_ref()
+                    .map_or((1.0, false), |m| (m.lags.len() as f64, m.model.has_drift()));
+                let bytes = 16.0 * j * lags * (8.0 + 4.0 * threads);
+                let connects = if drift { 1.0 + 2.0 * lags } else { 2.0 };
+                let per_path =
+                    vertices * (VERTEX_S + connects * per_vertex_connect + 8.0 * j * lags * PAIR_S);
+                (
+                    bytes,
+                    "motion.lags",
+                    per_path * r.paths as f64,
+                    "render.paths",
+                )
             }
             Command::Fields => {
                 // The fields, their intensities and the staged array.

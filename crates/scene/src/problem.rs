@@ -192,6 +192,8 @@ pub struct Problem {
     pub output: OutputSettings,
     /// Mie facts of a particle medium.
     pub medium_facts: Option<MediumFacts>,
+    /// Moving scatterers and time lags (`[motion]`), when given.
+    pub motion: Option<crate::build::motion::MotionSettings>,
 }
 
 impl Problem {
@@ -264,6 +266,14 @@ impl Problem {
         let render = RenderSettings::build(&file.render, &sources, dim)?;
         let output = OutputSettings::build(&file.output, access)?;
         let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?;
+        let motion = match &file.motion {
+            Some(m) => Some(crate::build::motion::build(
+                m,
+                scene.medium(),
+                scene.wavenumber(),
+            )?),
+            None => None,
+        };
         // Check the sampling configuration against the medium now rather than at render time.
         Tracer::with_types(scene.medium(), scene.phases(), render.sampling)
             .map_err(|p| invalid("render", p))?;
@@ -280,6 +290,7 @@ impl Problem {
             render,
             output,
             medium_facts: facts,
+            motion,
         })
     }
 

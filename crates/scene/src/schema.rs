@@ -44,6 +44,42 @@ pub struct SceneFile {
     /// Output settings.
     #[serde(default)]
     pub output: OutputSpec,
+    /// Moving scatterers and the time lags of `speckle g1` (Bar et al. 2023); a static scene
+    /// when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionSpec>,
+}
+
+/// `[motion]`: how the scatterers move (Eq. 1: Brownian diffusion `D`, in length^2 per time
+/// unit, and a drift velocity `U`), either one motion for the whole medium (`diffusion`,
+/// `drift`) or one per material of a materials grid (`materials`, in the grid's material
+/// order), and the time lags at which temporal correlations are rendered.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// Diffusion coefficient `D >= 0` of every scatterer (0 when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diffusion: Option<f64>,
+    /// Drift velocity `U` of every scatterer (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift: Option<[f64; 3]>,
+    /// One motion per material instead (not with `diffusion` or `drift`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub materials: Option<Vec<MaterialMotionSpec>>,
+    /// The time lags `t` of the correlations `C(t)` (at least one; the first is usually 0).
+    pub lags: Vec<f64>,
+}
+
+/// The motion of one material in `[[motion.materials]]`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialMotionSpec {
+    /// Diffusion coefficient `D >= 0` (0 when absent).
+    #[serde(default)]
+    pub diffusion: f64,
+    /// Drift velocity `U` (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift: Option<[f64; 3]>,
 }
 
 fn three() -> i64 {

@@ -212,6 +212,90 @@ where
     }
 }
 
+/// The parts of a [`batch_moments_grouped`] estimate: the [`Layout`] and vector length `J` of
+/// each part, and the parts cut into consecutive groups of `group` parts that share a total
+/// (for example the single- and multiple-scattering parts of the covariance at each of several
+/// time lags: `group = 2`, one total per lag). The parts of a group share layout and length.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PartGroups {
+    /// The layout and vector length of each part.
+    pub parts: Vec<(Layout, usize)>,
+    /// Parts per group (at least 1; the number of parts is a multiple of it).
+    pub group: usize,
+}
+
+/// [`batch_moments`] over groups of parts, each with its own total: returns, per group, the
+/// estimates of its parts and of their sum (the only part's estimate again for a group of one),
+/// `None` if cancelled. Part `p` accumulates in `sums[p]`, of layout and length
+/// `groups.parts[p]`.
+///
+/// Each group is reduced by its own [`MomentsReduction`], so the estimates of a group are bitwise
+/// those of a [`batch_moments`] render of its parts alone (with their total).
+///
+/// # Panics
+/// If the parts do not split into whole groups, or the parts of a group differ in layout.
+pub fn batch_moments_grouped<S, I, W>(
+    paths: u64,
+    groups: &PartGroups,
+    init: I,
+    path: W,
+    progress: &dyn Progress,
+) -> Option<Vec<(Vec<MatrixEstimate>, Option<MatrixEstimate>)>>
+where
+    I: Fn() -> S + Sync,
+    W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
+{
+    let layouts = &groups.parts;
+    let g = groups.group.max(1);
+    assert_eq!(layouts.len() % g, 0, "parts must split into whole groups");
+    let mut reductions: Vec<MomentsReduction> = layouts
+        .chunks(g)
+        .map(|chunk| {
+            assert!(chunk.iter().all(|l| *l == chunk[0]), "one layout per group");
+            MomentsReduction::new(MomentsSpec {
+                paths,
+                j: chunk[0].1,
+                layout: chunk[0].0,
+                parts: g,
+                with_total: true,
+            })
+        })
+        .collect();
+    let batches = Batches::about(paths, TARGET_BATCHES);
+    let buffers = Buffers::default();
+    let run = |b: usize| {
+        let range = batches.range(b);
+        let mut sums: Vec<BatchSum> = layouts
+            .iter()
+            .map(|&(layout, j)| BatchSum::new(layout, j, &buffers))
+            .collect();
+        let mut state = init();
+        for_each_path(range.clone(), progress, |n, poll| {
+            path(&mut state, n, &mut sums, poll)
+        })?;
+        let sums: Vec<Vec<Complex64>> = sums.into_iter().map(BatchSum::finish).collect();
+        Some((range.end - range.start, sums))
+    };
+    let bytes = layouts.iter().map(|&(l, j)| l.len(j)).sum::<usize>().max(1) * 16;
+    let done = run_ordered(batches.count(), bytes, run, |_, (n, sums)| {
+        for (r, s) in reductions.iter_mut().zip(sums.chunks(g)) {
+            r.add(n, s);
+        }
+        for s in sums {
+            buffers.give(s);
+        }
+    });
+    if !done {
+        return None;
+    }
+    Some(
+        reductions
+            .into_iter()
+            .map(|r| r.finish().expect("a whole run reduces every batch"))
+            .collect(),
+    )
+}
+
 /// Memory allowed for batch results held at once.
 const MEMORY_BUDGET: usize = 1 << 30;
 

@@ -137,6 +137,24 @@ impl BatchSum {
         }
     }
 
+    /// Adds `w v` to the stored entries of a [`Layout::GeneralDiagonal`] sum, entry by entry:
+    /// the products `a_e conj(b_e)` of listed entries, already formed by the caller (with
+    /// entry-dependent factors such as the endpoint decorrelation of moving scatterers).
+    ///
+    /// # Panics
+    /// In any other layout.
+    #[inline]
+    pub fn push_values(&mut self, v: &[Complex64], w: Complex64) {
+        assert_eq!(
+            self.layout,
+            Layout::GeneralDiagonal,
+            "BatchSum::push_values: a general-diagonal sum"
+        );
+        for (d, x) in self.diag.iter_mut().zip(v) {
+            *d += w * x;
+        }
+    }
+
     /// The complete sum in the entries of the layout (the last, partly filled block added).
     pub fn finish(self) -> Vec<Complex64> {
         match self.full {

@@ -64,6 +64,10 @@
 //! These are what the Monte Carlo mean and covariance estimate (the mean of
 //! `speckle_scene::Scene::mean` includes the attenuated incident field).
 //!
+//! **Moving scatterers** ([`render_wave_motion`]): each configuration is moved along sampled
+//! trajectories (Brownian diffusion and drift, Bar et al. 2023, Eq. 1) and solved at every
+//! requested time, for the spatio-temporal covariance of the 2023 paper.
+//!
 //! # Cost
 //! Assembly `O(N^2)` Green's functions, LU `(8/3) N^3` real flops, solves `O(N^2 S)` for `S`
 //! sources, sensors `O(N (sensors + pairs))`; memory `16 N^2` bytes. The expected `N` is
@@ -95,11 +99,13 @@ pub mod bessel;
 mod cost;
 mod kernel;
 pub mod lu;
+mod motion;
 mod render;
 mod solve;
 
 pub use cost::{WaveCost, estimate_cost};
 pub use kernel::Kernel;
+pub use motion::{MAX_FIELD_ENTRIES, WaveMotionEstimate, render_wave_motion};
 pub use render::{WaveEstimate, WaveOptions, WaveShard, render_wave, render_wave_shard};
 pub use solve::{
     MAX_EXPECTED_SCATTERERS, MAX_SCATTERERS, WaveScene, check_scene, expected_scatterers,

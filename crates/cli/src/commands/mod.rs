@@ -7,6 +7,7 @@ pub mod demo;
 pub mod example;
 pub mod fields;
 pub mod fit_phase;
+pub mod g1;
 pub mod intensity;
 pub mod mean;
 pub mod memory_spectrum;

@@ -7,6 +7,7 @@
 //!   tables embedded in the binary (`embedded:NAME`);
 //! - [`endpoints`]: sources and the sensor generators (`plane_tilts`, `far_grid`, `far_arc`,
 //!   `point_grid`), expanded in order;
+//! - [`motion`]: moving scatterers (one motion, or one per material) and time lags;
 //! - [`render`]: render and output settings (path counts, seed, coherence, sampling strategies,
 //!   realizations, configurations, PNGs).
 //!
@@ -15,6 +16,7 @@
 
 pub mod endpoints;
 pub mod medium;
+pub mod motion;
 pub mod phase;
 pub mod render;
 

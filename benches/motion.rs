@@ -1,0 +1,64 @@
+//! Criterion benchmark of the temporal correlation of moving scatterers (issue 12): `g1` of
+//! every pair at 64 lags (`render_correlation`, diagonal entries) against the static intensity
+//! of the same pairs (`render_intensity`, the target named by the issue: under 2x per path), for
+//! Brownian motion and for Brownian motion with drift (the drift connects both copies of every
+//! lag at both end vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
+
+mod common;
+
+use common::scene;
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use speckle::estimators::{
+    Coherence, CovarianceOptions, Entries, NoProgress, render_correlation, render_intensity,
+};
+use speckle::medium::DVec3;
+use speckle::motion::{Motion, MotionModel};
+use std::hint::black_box;
+
+fn temporal(c: &mut Criterion) {
+    let paths = 4096;
+    let lags: Vec<f64> = (0..64).map(|l| l as f64 * 0.05).collect();
+    for (n_src, n_sens) in [(1, 1), (2, 16)] {
+        let s = scene(n_src, n_sens);
+        let opts = CovarianceOptions {
+            paths,
+            seed: 1,
+            coherence: Coherence::ForwardAndReversed,
+            ..Default::default()
+        };
+        let id = format!("J={}", s.len());
+        let mut g = c.benchmark_group("estimators/temporal/paths");
+        g.sample_size(10).throughput(Throughput::Elements(paths));
+        g.bench_function(BenchmarkId::new("static", &id), |b| {
+            b.iter(|| black_box(render_intensity(&s, &opts, &NoProgress).unwrap()))
+        });
+        for (name, motion) in [
+            ("brownian_64_lags", Motion::brownian(0.01).unwrap()),
+            (
+                "drift_64_lags",
+                Motion::new(0.01, DVec3::new(0.2, 0.0, 0.0)).unwrap(),
+            ),
+        ] {
+            let model = MotionModel::uniform(motion);
+            g.bench_function(BenchmarkId::new(name, &id), |b| {
+                b.iter(|| {
+                    black_box(
+                        render_correlation(
+                            &s,
+                            &model,
+                            &lags,
+                            &Entries::Diagonal,
+                            &opts,
+                            &NoProgress,
+                        )
+                        .unwrap(),
+                    )
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, temporal);
+criterion_main!(benches);

@@ -1,0 +1,112 @@
+//! End-to-end tests of `speckle g1` and the `[motion]` table: the zero lag of `g1` is bitwise
+//! the intensity render of the same scene and seed, `g1(0) = 1`, the correlation decays with
+//! the lag; bad input exits with code 2 and names the field.
+
+use std::path::Path;
+
+mod common;
+use common::*;
+
+const SCENE: &str = r#"
+name = "m"
+wavelength = 1.0
+
+[medium]
+size = [12.0, 12.0, 4.0]
+mean_free_path = 2.0
+
+[[sources]]
+type = "plane"
+direction = [0.0, 0.0, 1.0]
+
+[[sensors]]
+type = "far"
+direction = [0.0, 0.0, 1.0]
+
+[[sensors]]
+type = "far"
+direction = [0.3, 0.0, 1.0]
+
+[render]
+paths = 3000
+seed = 4
+"#;
+
+/// The values of a `.npy` file (version 1.0) of little-endian `f64` (`<f8`, or `<c16` read as
+/// pairs).
+fn npy_f64(path: &Path) -> Vec<f64> {
+    let b = std::fs::read(path).unwrap();
+    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
+    b[10 + len..]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+#[test]
+fn g1_zero_lag_is_the_intensity_and_decays() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = "\n[motion]\ndiffusion = 0.002\nlags = [0.0, 1.0, 4.0]\n";
+    let scene = write(dir.path(), "m.toml", &format!("{SCENE}{motion}"));
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["g1", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = speckle(
+        dir.path(),
+        &["intensity", s, "--out", "out", "-q", "--no-png"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let c = npy_f64(&out.join("m.correlation.npy"));
+    let g = npy_f64(&out.join("m.g1.npy"));
+    let i = npy_f64(&out.join("m.intensity.npy"));
+    assert_eq!(npy_f64(&out.join("m.lags.npy")), vec![0.0, 1.0, 4.0]);
+    assert!(out.join("m.g1.json").exists() && out.join("m.correlation_stderr.npy").exists());
+    // (J, L) complex: pair j, lag l at 2 (j L + l).
+    for j in 0..2 {
+        let at = |l: usize| (c[2 * (3 * j + l)], c[2 * (3 * j + l) + 1]);
+        assert_eq!(at(0).0.to_bits(), i[j].to_bits(), "pair {j}");
+        assert_eq!(g[2 * (3 * j)], 1.0);
+        let norm = |(re, im): (f64, f64)| (re * re + im * im).sqrt();
+        assert!(
+            norm(at(2)) < norm(at(1)) && norm(at(1)) < at(0).0,
+            "pair {j}: {c:?}"
+        );
+    }
+}
+
+#[test]
+fn bad_motion_names_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    for (motion, field) in [
+        ("[motion]\nlags = []\n", "motion.lags"),
+        (
+            "[motion]\ndiffusion = -1.0\nlags = [0.0]\n",
+            "motion.diffusion",
+        ),
+        (
+            "[motion]\ndrift = [0.0, nan, 0.0]\nlags = [0.0]\n",
+            "motion.drift[1]",
+        ),
+        ("[motion]\nlags = [0.0, inf]\n", "motion.lags[1]"),
+        (
+            "[motion]\ndiffusion = 1e300\nlags = [0.0, 1e10]\n",
+            "motion.lags",
+        ),
+        (
+            "[motion]\nlags = [0.0]\n[[motion.materials]]\ndiffusion = 1.0\n[[motion.materials]]\n",
+            "motion.materials",
+        ),
+        ("[motion]\nlags = [0.0]\nspeed = 3.0\n", "speed"),
+    ] {
+        let scene = write(dir.path(), "bad.toml", &format!("{SCENE}\n{motion}"));
+        let o = speckle(dir.path(), &["g1", scene.to_str().unwrap(), "-q"]);
+        assert_eq!(o.status.code(), Some(2), "{motion}: {}", stderr(&o));
+        assert!(stderr(&o).contains(field), "{motion}: {}", stderr(&o));
+    }
+    // g1 of a static scene.
+    let scene = write(dir.path(), "static.toml", SCENE);
+    let o = speckle(dir.path(), &["g1", scene.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
+}
