@@ -5,8 +5,9 @@
 //! (fitted scattering amplitudes reach `kappa ~ 3.4e3`, apertures times `i k` distances reach
 //! `|mu| ~ 1e5`).
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use num_complex::Complex64;
+
 /// `ln(4 pi)`, the log of the area of the unit sphere.
 pub(crate) const LN_4PI: f64 = 2.531_024_246_969_290_7;
 
@@ -150,7 +151,7 @@ pub(crate) fn inverse_mean_resultant_length(d: f64, cap: f64) -> f64 {
 }
 
 /// `e^z - 1` for complex `z`, accurate near `z = 0`.
-fn exp_m1_complex(z: Complex64) -> Complex64 {
+pub(crate) fn exp_m1_complex(z: Complex64) -> Complex64 {
     let (s, c) = z.im.sin_cos();
     let half = (0.5 * z.im).sin();
     // e^x cos y - 1 = (e^x - 1) cos y - 2 sin^2(y/2)
@@ -158,7 +159,7 @@ fn exp_m1_complex(z: Complex64) -> Complex64 {
 }
 
 /// `ln(1 + z)` for complex `z`, accurate near `z = 0` (principal branch).
-fn ln_1p_complex(z: Complex64) -> Complex64 {
+pub(crate) fn ln_1p_complex(z: Complex64) -> Complex64 {
     // |1 + z|^2 = 1 + (2 x + x^2 + y^2)
     let re = 0.5 * (2.0 * z.re + z.norm_sqr()).ln_1p();
     Complex64::new(re, z.im.atan2(1.0 + z.re))
@@ -267,6 +268,26 @@ impl ComplexVmf {
     /// `h1 h2^*`, the product that appears in every covariance term (notes Sec. 4.4a).
     pub fn mul_conj(&self, other: &Self) -> Self {
         self.mul(&other.conj())
+    }
+
+    /// The function rotated by the real orthogonal matrix `r`: `h'(w) = h(r^T w)`, i.e.
+    /// `mu' = r mu` (real and imaginary parts rotated alike), so `h'(r w) = h(w)` and the sphere
+    /// integral is unchanged (`mu' . mu' = mu . mu` for orthogonal `r`). `r` is not checked.
+    pub fn rotated(&self, r: DMat3) -> Self {
+        let re = r * DVec3::new(self.mu[0].re, self.mu[1].re, self.mu[2].re);
+        let im = r * DVec3::new(self.mu[0].im, self.mu[1].im, self.mu[2].im);
+        Self {
+            log_scale: self.log_scale,
+            mu: std::array::from_fn(|j| Complex64::new(re[j], im[j])),
+        }
+    }
+
+    /// `ln int_{S^2} |h| dw`, the log of the sphere integral of the modulus
+    /// `|h(w)| = e^(Re log_scale + Re mu . w)`: the scale against which the (possibly much
+    /// smaller, cancelling) integral of `h` itself can be resolved.
+    pub fn ln_modulus_integral(&self) -> f64 {
+        let re = DVec3::new(self.mu[0].re, self.mu[1].re, self.mu[2].re);
+        self.log_scale.re + LN_4PI + ln_sinhc(re.length())
     }
 
     /// `mu . mu = mu_x^2 + mu_y^2 + mu_z^2`, the bilinear (non-Hermitian) square (Eq. 20; the paper
