@@ -7,6 +7,9 @@
 //!   rotations and the sphere integral (Eq. 29) in closed form.
 //! - [`CircleVmf`]: the flatland analogue on the unit circle, whose integral is
 //!   `2 pi eta I_0(sqrt(mu . mu))` ([`ln_bessel_i0`], complex argument, log form).
+//! - [`Aperture`], [`CircleAperture`]: unit-integral Gaussian lens apertures and their weighted
+//!   aperture functions (Eqs. 23-27) as complex vMFs; the exact connection `Upsilon` of Eqs. 15-16
+//!   for a mixture amplitude ([`Aperture::ln_upsilon`]).
 //! - [`VmfMixture`]: a real amplitude `s(mu) = sum_m pi_m e^(gamma_m mu)` with lobes on the
 //!   axis `+-i` (Eq. 28), with the methods of a normalised phase function (amplitude, density,
 //!   exact sampling of the cosine, closed-form mean cosine).
@@ -42,6 +45,7 @@
 #![deny(missing_docs)]
 
 mod algebra;
+mod aperture;
 mod bessel;
 mod circle;
 mod fit;
@@ -49,6 +53,9 @@ mod mixture;
 
 pub use algebra::{
     ComplexVmf, ln_sinhc, ln_sinhc_complex, ln_vmf_normaliser, mean_resultant_length,
+};
+pub use aperture::{
+    Aperture, CircleAperture, MAX_APERTURE_GAMMA, gamma_from_na, ln_sum_exp_complex,
 };
 pub use bessel::{bessel_ratio_over_z, ln_bessel_i0};
 pub use circle::{CircleVmf, ln_circle_normaliser};
