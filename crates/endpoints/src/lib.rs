@@ -40,12 +40,14 @@
 
 pub mod fastmath;
 mod free_space;
+mod gaussian;
 mod kernels;
 mod mean;
 mod plane;
 mod point;
 
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
+pub use gaussian::GaussianBeam;
 pub use kernels::{Endpoints, Legs};
 pub use mean::{mean_field, mean_field_cancellable};
 
