@@ -171,6 +171,39 @@ impl GaussianBeam {
         }
     }
 
+    /// What this beam, as the source form of a Gaussian sensor, reads of the vacuum field of the
+    /// beam `source`: `int m_v(w) e^(i k w . v) A(w) dw` with the source's far-field amplitude
+    /// `A(w) = (2 pi / (i k)) m_s(w) e^(-i k w . f_s)` (flatland: `sqrt(2 pi / k) e^(-i pi/4)`
+    /// in place of `2 pi / (i k)`) and the sensor's mask `m_v(w) = m(-w)` of this source form:
+    /// the closed-form integral of the product of the two masks and the phase.
+    pub fn read_beam(&self, dimension: Dimension, k: f64, source: &GaussianBeam) -> Complex64 {
+        // mu = gamma_s a_s + gamma_v a_v + i k (v - f_s), with a_v = -self.axis.
+        let d = k * (self.focus - source.focus);
+        match dimension {
+            Dimension::Three => {
+                let (ms, mv) = (source.aperture().mask(), self.reversed().aperture().mask());
+                let wave = ComplexVmf::new(
+                    Complex64::new(0.0, 0.0),
+                    [d.x, d.y, d.z].map(|v| Complex64::new(0.0, v)),
+                );
+                let l = ms.mul(&mv).mul(&wave).ln_sphere_integral();
+                Complex64::from_polar(((TAU / k).ln() + l.re).exp(), l.im - 0.5 * PI)
+            }
+            Dimension::Two => {
+                let (ms, mv) = (
+                    source.circle_aperture().mask(),
+                    self.reversed().circle_aperture().mask(),
+                );
+                let wave = speckle_vmf::CircleVmf::new(
+                    Complex64::new(0.0, 0.0),
+                    [Complex64::new(0.0, d.x), Complex64::new(0.0, d.y)],
+                );
+                let l = ms.mul(&mv).mul(&wave).ln_circle_integral();
+                Complex64::from_polar((0.5 * (TAU / k).ln() + l.re).exp(), l.im - 0.25 * PI)
+            }
+        }
+    }
+
     /// The 3D weighted aperture at the medium point `o` (Eqs. 26-27): a complex vMF of the
     /// plane-wave direction, attenuated by `e^(-tau)`, `tau = sigma_t d / 2` along the axis
     /// (the constant-attenuation approximation of Eq. 25).
@@ -236,18 +269,30 @@ mod tests {
     /// definitions (no vMF algebra): composite Gauss-Legendre in `cos(theta)` about the axis
     /// (panels graded towards the axis) times the trapezoid rule in the azimuth.
     fn superposition_3d(b: &GaussianBeam, k: f64, x: DVec3) -> Complex64 {
-        let g = b.concentration;
-        let c3 = if g == 0.0 {
+        let d = k * (x - b.focus);
+        sphere_quad(b.axis, b.concentration, d.length(), |w| {
+            c3_scaled(b.concentration)
+                * (b.concentration * (w.dot(b.axis) - 1.0)).exp()
+                * Complex64::from_polar(1.0, d.dot(w))
+        })
+    }
+
+    /// `C_3(gamma) e^gamma` from its definition.
+    fn c3_scaled(g: f64) -> f64 {
+        if g == 0.0 {
             1.0 / (4.0 * PI)
         } else {
-            // gamma / (4 pi sinh gamma), times e^(gamma) folded into the mask below.
             g / (2.0 * PI * (1.0 - (-2.0 * g).exp()))
-        };
-        let (t1, t2) = b.axis.any_orthonormal_pair();
-        let d = k * (x - b.focus);
-        let gl = gauss_legendre(16);
+        }
+    }
+
+    /// `int_{S^2} f(w) dw` for `f` peaked about `axis` with concentration about `g`, oscillating
+    /// at up to `rate` radians per unit change of `w`.
+    fn sphere_quad(axis: DVec3, g: f64, rate: f64, f: impl Fn(DVec3) -> Complex64) -> Complex64 {
+        let (t1, t2) = axis.any_orthonormal_pair();
         let mut edges = vec![0.0];
         let mut e = 1e-3 / g.max(1.0);
+        let gl = gauss_legendre(16);
         while e < 2.0 {
             edges.push(e);
             e *= 1.3;
@@ -255,20 +300,18 @@ mod tests {
         edges.push(2.0);
         let mut sum = Complex64::new(0.0, 0.0);
         for w in edges.windows(2) {
-            let parts = ((w[1] - w[0]) * (d.length() + g + 1.0) / 2.0).ceil() as usize;
+            let parts = ((w[1] - w[0]) * (rate + g + 1.0) / 2.0).ceil() as usize;
             for p in 0..parts {
                 let a = w[0] + (w[1] - w[0]) * p as f64 / parts as f64;
                 let bb = w[0] + (w[1] - w[0]) * (p + 1) as f64 / parts as f64;
                 for &(xi, wi) in &gl {
                     let t = 0.5 * (a + bb) + 0.5 * (bb - a) * xi;
                     let (ct, st) = (1.0 - t, (t * (2.0 - t)).sqrt());
-                    let n_phi = 64 + (2.0 * d.length() * st) as usize;
+                    let n_phi = 64 + (2.0 * (rate + g) * st) as usize;
                     let mut ring = Complex64::new(0.0, 0.0);
                     for j in 0..n_phi {
                         let (sp, cp) = (TAU * j as f64 / n_phi as f64).sin_cos();
-                        let wv = ct * b.axis + st * (cp * t1 + sp * t2);
-                        let mask = c3 * (g * (wv.dot(b.axis) - 1.0)).exp();
-                        ring += mask * Complex64::from_polar(1.0, d.dot(wv));
+                        ring += f(ct * axis + st * (cp * t1 + sp * t2));
                     }
                     sum += ring * (TAU / n_phi as f64) * (0.5 * (bb - a) * wi);
                 }
@@ -467,6 +510,218 @@ mod tests {
             assert!((u - exact).norm() < 1e-14);
             assert!((u - (point + point.conj())).norm() < 1e-14);
         }
+    }
+
+    /// The free-space physics the wave solver supplies, for the arms of `free_space.rs`.
+    struct Space {
+        k: f64,
+        dim: Dimension,
+        f: Complex64,
+    }
+
+    impl crate::FreeSpace for Space {
+        fn wavenumber(&self) -> f64 {
+            self.k
+        }
+        fn dimension(&self) -> Dimension {
+            self.dim
+        }
+        fn point_source(&self, r: f64) -> Complex64 {
+            Complex64::from_polar(1.0 / r, self.k * r)
+        }
+        fn scattered(&self, r: f64) -> Complex64 {
+            self.f * self.point_source(r)
+        }
+        fn scattering_amplitude(&self) -> Complex64 {
+            self.f
+        }
+    }
+
+    /// The wave solver's view of Gaussian endpoints (`free_space.rs`), 3D, against direct
+    /// quadrature of Eq. 9 in the user's form (the sensor's mask about its viewing axis `a_v`
+    /// weighing the far-field amplitudes `A(w)` it collects, with the focusing phase
+    /// `e^{ik w.v}` of Eq. 10): a point scatterer (`A = f e^{-ik w.o}`), a point source
+    /// (`A = e^{-ik w.p}`), a beam (`A = (2 pi/ik) m_b(w) e^{-ik w.f_b}`); reciprocity of every
+    /// pair; and the narrow-aperture limits (plane wave; far-field sensor times the focal phase).
+    #[test]
+    fn free_space_arms_3d() {
+        use crate::{Sensor, Source, direct_field, incident_field, sensor_response};
+        let k = TAU;
+        let fs = Space {
+            k,
+            dim: Dimension::Three,
+            f: Complex64::new(0.3, -0.7),
+        };
+        let a_v = DVec3::new(0.1, 0.2, 1.0).normalize();
+        let v = DVec3::new(0.2, -0.3, 1.5);
+        let (g_v, g_b) = (9.0, 5.0);
+        let user = GaussianBeam::new("sensor", v, a_v, g_v).unwrap();
+        let sensor = Sensor::GaussianBeam(user);
+        let mask_v = |w: DVec3| c3_scaled(g_v) * (g_v * (w.dot(a_v) - 1.0)).exp();
+        let read = |amp: &dyn Fn(DVec3) -> Complex64, rate: f64| {
+            sphere_quad(a_v, g_v, rate, |w| {
+                mask_v(w) * Complex64::from_polar(1.0, k * w.dot(v)) * amp(w)
+            })
+        };
+        // A point scatterer at o.
+        let o = DVec3::new(-0.4, 0.5, 0.2);
+        let got = sensor_response(&sensor, &fs, o).unwrap();
+        let want = read(
+            &|w| fs.f * Complex64::from_polar(1.0, -k * w.dot(o)),
+            k * (v - o).length(),
+        );
+        assert!((got - want).norm() < 1e-11, "{got} vs {want}");
+        // A point source at p, and the beam b.
+        let p = DVec3::new(0.5, 0.1, -2.0);
+        let got = direct_field(&Source::point(p), &sensor, &fs).unwrap();
+        let want = read(
+            &|w| Complex64::from_polar(1.0, -k * w.dot(p)),
+            k * (v - p).length(),
+        );
+        assert!((got - want).norm() < 1e-11, "{got} vs {want}");
+        let a_b = DVec3::new(-0.2, 0.1, 1.0).normalize();
+        let f_b = DVec3::new(0.1, 0.3, -1.0);
+        let b = GaussianBeam::new("source", f_b, a_b, g_b).unwrap();
+        let got = direct_field(&Source::GaussianBeam(b), &sensor, &fs).unwrap();
+        let want = read(
+            &|w| {
+                Complex64::new(0.0, -TAU / k)
+                    * c3_scaled(g_b)
+                    * (g_b * (w.dot(a_b) - 1.0)).exp()
+                    * Complex64::from_polar(1.0, -k * w.dot(f_b))
+            },
+            k * (v - f_b).length() + g_b,
+        );
+        assert!((got - want).norm() < 1e-11, "{got} vs {want}");
+        // Incident field at x: the superposition itself.
+        let x = DVec3::new(0.3, 0.3, 0.3);
+        let got = incident_field(&Source::GaussianBeam(b), &fs, x).unwrap();
+        assert!((got - superposition_3d(&b, k, x)).norm() < 1e-11);
+        // Reciprocity: C[(i, v)] = C[(v^R, i^R)] for every pair with a Gaussian end.
+        let sources = [
+            Source::point(p),
+            Source::GaussianBeam(b),
+            Source::plane_wave(a_b).unwrap(),
+        ];
+        let sensors = [
+            sensor,
+            Sensor::far_field(a_v).unwrap(),
+            Sensor::point(p + DVec3::X),
+        ];
+        for src in &sources {
+            for sen in &sensors {
+                let there = direct_field(src, sen, &fs).unwrap();
+                let back = direct_field(&sen.reciprocal(), &src.reciprocal(), &fs).unwrap();
+                assert!(
+                    (there - back).norm() < 1e-13 * there.norm().max(1e-300) + 1e-300,
+                    "{src:?} {sen:?}: {there} vs {back}"
+                );
+            }
+        }
+        // Narrow sensor aperture: the far-field reading e^{-ik a.p} times the focal phase
+        // e^{ik a.v}; narrow source aperture: the plane wave through the focus (here the origin).
+        let narrow = Sensor::GaussianBeam(GaussianBeam::new("sensor", v, a_v, 1e5).unwrap());
+        let got = direct_field(&Source::point(p), &narrow, &fs).unwrap();
+        let far = direct_field(&Source::point(p), &Sensor::far_field(a_v).unwrap(), &fs).unwrap();
+        let want = far * Complex64::from_polar(1.0, k * a_v.dot(v));
+        assert!(
+            (got - want).norm() < k * k * (v - p).length_squared() / 1e5,
+            "{got} vs {want}"
+        );
+        let narrow_b =
+            Source::GaussianBeam(GaussianBeam::new("source", DVec3::ZERO, a_b, 1e6).unwrap());
+        let got = direct_field(&narrow_b, &sensor, &fs).unwrap();
+        let want = direct_field(&Source::plane_wave(a_b).unwrap(), &sensor, &fs).unwrap();
+        assert!((got - want).norm() < 1e-4 * want.norm(), "{got} vs {want}");
+    }
+
+    /// Flatland: a Gaussian sensor reading a beam, against quadrature of
+    /// `sqrt(2 pi/k) e^{-i pi/4} int m_v m_b e^{ik w.(v - f_b)} dphi` (masks normalised by
+    /// quadrature), and reciprocity of the pairs with Gaussian ends.
+    #[test]
+    fn free_space_arms_2d() {
+        use crate::{Sensor, Source, direct_field};
+        let k = TAU;
+        let fs = Space {
+            k,
+            dim: Dimension::Two,
+            f: Complex64::new(0.3, -0.7),
+        };
+        let (a_v, v, g_v) = (planar(1.4), DVec3::new(0.2, 1.5, 0.0), 9.0);
+        let (a_b, f_b, g_b) = (planar(1.7), DVec3::new(-0.3, -1.0, 0.0), 5.0);
+        let sensor = Sensor::GaussianBeam(GaussianBeam::new("sensor", v, a_v, g_v).unwrap());
+        let b = GaussianBeam::new("source", f_b, a_b, g_b).unwrap();
+        let gl = gauss_legendre(16);
+        let panels = 256;
+        let (mut sum, mut nv, mut nb) = (Complex64::new(0.0, 0.0), 0.0, 0.0);
+        for p in 0..panels {
+            let (lo, hi) = (
+                TAU * p as f64 / panels as f64,
+                TAU * (p + 1) as f64 / panels as f64,
+            );
+            for &(xi, wi) in &gl {
+                let w = planar(0.5 * (lo + hi) + 0.5 * (hi - lo) * xi);
+                let wt = 0.5 * (hi - lo) * wi;
+                let (mv, mb) = (
+                    (g_v * (w.dot(a_v) - 1.0)).exp(),
+                    (g_b * (w.dot(a_b) - 1.0)).exp(),
+                );
+                nv += mv * wt;
+                nb += mb * wt;
+                sum += mv * mb * Complex64::from_polar(1.0, k * w.dot(v - f_b)) * wt;
+            }
+        }
+        let want = sum / (nv * nb) * Complex64::from_polar((TAU / k).sqrt(), -0.25 * PI);
+        let got = direct_field(&Source::GaussianBeam(b), &sensor, &fs).unwrap();
+        assert!((got - want).norm() < 1e-12, "{got} vs {want}");
+        let sources = [
+            Source::point(DVec3::new(0.5, -2.0, 0.0)),
+            Source::GaussianBeam(b),
+            Source::plane_wave(a_b).unwrap(),
+        ];
+        let sensors = [sensor, Sensor::far_field(a_v).unwrap()];
+        for src in &sources {
+            for sen in &sensors {
+                let there = direct_field(src, sen, &fs).unwrap();
+                let back = direct_field(&sen.reciprocal(), &src.reciprocal(), &fs).unwrap();
+                assert!(
+                    (there - back).norm() <= 1e-13 * there.norm(),
+                    "{src:?} {sen:?}: {there} vs {back}"
+                );
+            }
+        }
+    }
+
+    /// The Monte Carlo estimators and the mean field refuse Gaussian beams, naming the entry.
+    #[test]
+    fn monte_carlo_and_mean_refuse_gaussian_beams() {
+        use crate::{Sensor, Source, check_monte_carlo, mean_field};
+        let m = HomogeneousBox::new(
+            Aabb::centered(DVec3::ZERO, DVec3::splat(2.0)).unwrap(),
+            1.0,
+            0.0,
+        )
+        .unwrap();
+        let b = beam(DVec3::ZERO, DVec3::Z, 16.0);
+        let sources = [
+            Source::plane_wave(DVec3::Z).unwrap(),
+            Source::GaussianBeam(b),
+        ];
+        let sensors = [Sensor::far_field(DVec3::Z).unwrap()];
+        let e = check_monte_carlo(&sources, &sensors)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("sources[1]: gaussian_beam"), "{e}");
+        let e = check_monte_carlo(&sources[..1], &[Sensor::GaussianBeam(b)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("sensors[0]: gaussian_beam"), "{e}");
+        assert!(check_monte_carlo(&sources[..1], &sensors).is_ok());
+        let phases = [speckle_phase::Phase::isotropic(Dimension::Three)];
+        let e = mean_field(&m, &phases, TAU, sources[1], sensors[0])
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("render.add_mean:"), "{e}");
     }
 
     #[test]

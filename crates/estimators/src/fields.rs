@@ -155,6 +155,7 @@ fn render<M: Medium, P: PhaseFunction>(
     max_tile: usize,
     batch: Option<u64>,
 ) -> Result<FieldEstimate, EstimatorError> {
+    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
     if options.realizations == 0 {
         return Err(EstimatorError::InvalidInput {
             field: "realizations".into(),

@@ -53,7 +53,7 @@ fn far_directions(p: &Problem) -> Vec<DVec3> {
         .iter()
         .map(|s| match *s {
             Sensor::FarField { direction } => direction,
-            Sensor::Point { .. } => panic!("a point sensor"),
+            Sensor::Point { .. } | Sensor::GaussianBeam(_) => panic!("not a far-field sensor"),
         })
         .collect()
 }
