@@ -53,6 +53,9 @@ pub struct EndpointInfo {
     /// `far_arc`: the rotation angle, degrees.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<f64>,
+    /// A Gaussian beam's aperture concentration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub concentration: Option<f64>,
 }
 
 impl EndpointInfo {
@@ -90,6 +93,7 @@ impl EndpointInfo {
             kind: "gaussian_beam",
             position: Some(b.focus.to_array()),
             direction: Some(axis.to_array()),
+            concentration: Some(b.concentration),
             ..Self::default()
         }
     }
