@@ -313,6 +313,41 @@ impl ComplexVmf {
         self.log_scale + LN_4PI + ln_sinhc_complex(self.beta())
     }
 
+    /// The exact convolution with the real lobe `e^(gamma w . psi)` evaluated at one direction
+    /// `w`, in log form: `ln int h(psi) e^(gamma w . psi) dpsi` (notes Sec. 4.4e; exact whenever
+    /// the outgoing direction is known, `B >= 2`).
+    pub fn ln_convolve_at(&self, gamma: f64, w: DVec3) -> Complex64 {
+        self.mul(&Self::real(0.0, gamma, w)).ln_sphere_integral()
+    }
+
+    /// The convolution approximation of Eqs. 31-32 (notes Sec. 4.4f): the function
+    /// `w -> int h(psi) e^(gamma w . psi) dpsi` approximated by the complex vMF
+    /// `exp(c + (gamma / beta_o) mu . w)`, linearising `beta(w) = sqrt((mu + gamma w)^2)` about
+    /// `w_o` (`beta_o = beta(w_o)`, principal root). The scale is matched at `w_o` with the full
+    /// sinh form, `c = ln eta + ln(4 pi sinh(beta_o) / beta_o) - (gamma / beta_o) mu . w_o`, so
+    /// the approximation is exact at `w_o` (the paper's Eq. 32 drops `e^(-2 beta_o)`); for
+    /// real `mu = g z` and `w_o = z` the parameter is `g gamma / (g + gamma) z` (variances add).
+    ///
+    /// Its error grows with the distance from `w_o`: the first neglected term of `beta(w)` is
+    /// `-(gamma mu . (w - w_o))^2 / (2 beta_o^3)`, so it is accurate near `w_o` and degrades in
+    /// the back directions of reflection (notes Sec. 4.7). `None` where `|beta_o|` is below
+    /// `1e-8 (|mu| + |gamma|)`, where the linearisation breaks down (a branch point).
+    pub fn convolve_approx(&self, gamma: f64, w_o: DVec3) -> Option<Self> {
+        let shifted = self.mul(&Self::real(0.0, gamma, w_o));
+        let beta = shifted.beta();
+        let size = self.mu.iter().map(|m| m.norm()).sum::<f64>() + gamma.abs();
+        if !(beta.norm() > 1e-8 * size) {
+            return None;
+        }
+        let ratio = gamma / beta;
+        let mu: [Complex64; 3] = self.mu.map(|m| ratio * m);
+        let at = mu[0] * w_o.x + mu[1] * w_o.y + mu[2] * w_o.z;
+        Some(Self {
+            log_scale: self.log_scale + LN_4PI + ln_sinhc_complex(beta) - at,
+            mu,
+        })
+    }
+
     /// `int_{S^2} h dw = eta 4 pi sinh(beta) / beta` (Eq. 29). Overflows where the value does; use
     /// [`ComplexVmf::ln_sphere_integral`] to combine large factors first.
     pub fn sphere_integral(&self) -> Complex64 {

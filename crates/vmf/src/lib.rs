@@ -4,7 +4,8 @@
 //! Eqs. 19-21, 28-29; `notes/nearfield-2020.md` Secs. 4.3-4.4 and 5).
 //!
 //! - [`ComplexVmf`]: `h(w) = exp(log_scale + mu . w)` with complex `mu`; products, conjugates
-//!   rotations and the sphere integral (Eq. 29) in closed form.
+//!   rotations, the sphere integral (Eq. 29) and the convolution with a lobe (exact at one
+//!   direction; the approximation of Eqs. 31-32 as a function) in closed form.
 //! - [`CircleVmf`]: the flatland analogue on the unit circle, whose integral is
 //!   `2 pi eta I_0(sqrt(mu . mu))` ([`ln_bessel_i0`], complex argument, log form).
 //! - [`Aperture`], [`CircleAperture`]: unit-integral Gaussian lens apertures and their weighted

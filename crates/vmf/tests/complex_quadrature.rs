@@ -531,3 +531,65 @@ fn upsilon_with_fitted_hg_mixture() {
         }
     }
 }
+
+/// The convolution approximation of Eqs. 31-32: exact at the expansion direction, variances add
+/// for a real lobe on the axis, and the single-scattering (`B = 1`) quantity of Eq. 18,
+/// `int a~_v(w) conv(w) dw` with the illumination's weighted aperture convolved with the lobe,
+/// against quadrature of the exact per-direction convolution, for the paper's `sigma_a = 0.25`
+/// (`gamma_a = 16`), lobes `gamma_s in {2, 20, 100}`, foci on the plane `z = 0` and first
+/// vertices within 2 wavelengths (transmission: both axes `+z`, `w_o` the viewing axis).
+/// Measured (release, `--nocapture`): median 0.5%, worst 2.46% at `gamma_s = 2`,
+/// `o = (0.3, 1.1, 0.2)`, 1.7 beam waists off the axis; the notes (Sec. 4.4f, I6) report below
+/// 1-2% nearer the axis. This is the documented error of the approximation where it is made
+/// (`B = 1` only); the test pins it below 3% on these points, so a change that degrades it fails.
+#[test]
+fn convolution_approximation() {
+    let k = 2.0 * PI;
+    // Exact at w_o, and variances add on the axis.
+    let h = ComplexVmf::new(c(0.3, -0.2), [c(1.0, 2.0), c(-0.5, 0.7), c(16.0, -3.0)]);
+    let w_o = DVec3::new(0.1, -0.2, 0.97).normalize();
+    for gamma in [0.5, 20.0, 3000.0] {
+        let a = h.convolve_approx(gamma, w_o).unwrap();
+        let d = ((a.ln_eval(w_o) - h.ln_convolve_at(gamma, w_o)).exp() - 1.0).norm();
+        assert!(d < 1e-12, "gamma={gamma}: {d:e}");
+    }
+    let axis = ComplexVmf::real(0.0, 16.0, DVec3::Z)
+        .convolve_approx(100.0, DVec3::Z)
+        .unwrap();
+    let expect = 16.0 * 100.0 / 116.0;
+    assert!((axis.mu[2].re - expect).abs() < 1e-12 && axis.mu[0].norm() == 0.0);
+    // Branch point: (mu + gamma w_o)^2 = 0 exactly.
+    let null = ComplexVmf::new(c(0.0, 0.0), [c(1.0, 0.0), c(0.0, 1.0), c(-2.0, 0.0)]);
+    assert!(null.convolve_approx(2.0, DVec3::Z).is_none());
+
+    let gamma_a = 16.0;
+    let illum = Aperture::new(gamma_a, DVec3::Z).unwrap();
+    let view = Aperture::new(gamma_a, -DVec3::Z).unwrap(); // source form of a sensor along +z
+    let (f_i, f_v) = (DVec3::ZERO, DVec3::new(0.4, -0.2, 0.0));
+    let mut worst: f64 = 0.0;
+    for gamma_s in [2.0, 20.0, 100.0] {
+        for o in [
+            DVec3::new(0.0, 0.0, 0.5),
+            DVec3::new(0.7, -0.3, 1.2),
+            DVec3::new(-1.0, 0.5, 2.0),
+            DVec3::new(0.3, 1.1, 0.2),
+        ] {
+            let a_i = illum.weighted(k, f_i, o, 0.0);
+            // The viewing aperture over the viewing direction v^: source form over w = -v^.
+            let a_v = view.weighted(k, f_v, o, 0.0);
+            let a_v_of = |v_hat: DVec3| a_v.ln_eval(-v_hat);
+            let approx = a_i.convolve_approx(gamma_s, DVec3::Z).unwrap();
+            let a_v_user = ComplexVmf::new(a_v.log_scale, a_v.mu.map(|m| -m));
+            let closed = a_v_user.mul(&approx).sphere_integral();
+            let im = k * (o - f_i).length() + k * (o - f_v).length();
+            let quad =
+                sphere_quadrature_with(DVec3::Z, gamma_a, DVec3::new(im, 0.0, 0.0), gamma_s, |w| {
+                    (a_v_of(w) + a_i.ln_convolve_at(gamma_s, w)).exp()
+                });
+            let rel = (closed - quad).norm() / quad.norm();
+            println!("gamma_s={gamma_s} o={o}: B = 1 relative error {rel:.2e}");
+            worst = worst.max(rel);
+        }
+    }
+    assert!(worst < 0.03, "worst relative error {worst}");
+}
