@@ -94,6 +94,8 @@ impl BoxMedium {
 enum RunKind {
     Plane(plane::Run),
     Point(point::Run),
+    /// Gaussian beams have no leg (see [`crate::check_monte_carlo`]).
+    Gaussian,
 }
 
 impl RunKind {
@@ -102,6 +104,7 @@ impl RunKind {
         match k {
             Kind::Plane(_) => Self::Plane(plane::Run::default()),
             Kind::Point(_) => Self::Point(point::Run::default()),
+            Kind::Gaussian(_) => Self::Gaussian,
         }
     }
 
@@ -110,6 +113,7 @@ impl RunKind {
         match (self, *k) {
             (Self::Plane(run), Kind::Plane(d)) => run.push(g, wavenumber, d),
             (Self::Point(run), Kind::Point(p)) => run.push(p),
+            (Self::Gaussian, Kind::Gaussian(_)) => {}
             _ => unreachable!("runs hold endpoints of one kind"),
         }
     }
@@ -347,6 +351,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             let (re, im) = (&mut legs.re[range.clone()], &mut legs.im[range.clone()]);
             let in_range = match &run.kind {
                 RunKind::Plane(f) => f.connect(&g, x, re, im),
+                RunKind::Gaussian => panic!("{}", crate::GAUSSIAN_MONTE_CARLO),
                 RunKind::Point(p) => {
                     let [dx, dy, dz] = &mut legs.dir;
                     let dir = [

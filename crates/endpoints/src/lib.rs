@@ -16,7 +16,12 @@
 //!
 //! - [`plane`](crate::plane): directional endpoints, the plane-wave source and its reciprocal,
 //!   the far-field sensor;
-//! - [`point`](crate::point): the point source and its reciprocal, the point sensor.
+//! - [`point`](crate::point): the point source and its reciprocal, the point sensor;
+//! - [`gaussian`](crate::gaussian): the focused Gaussian beam (Bar et al. 2020) as a source and,
+//!   axis reversed, as a sensor: validation, its exact vacuum field, far-field amplitude and
+//!   sensor readings for the wave solver, its weighted aperture and exact `Upsilon` connection.
+//!   The Monte Carlo estimators refuse it for now ([`check_monte_carlo`]): its connection is not
+//!   a leg times an amplitude, and the near-field estimator is not wired in yet.
 //!
 //! A sensor is written in *source form*, as the source of the field it reads by reciprocity
 //! (the far-field sensor `v` is the plane wave along `-v`; the point sensor at `q` the point
@@ -40,12 +45,14 @@
 
 pub mod fastmath;
 mod free_space;
+mod gaussian;
 mod kernels;
 mod mean;
 mod plane;
 mod point;
 
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
+pub use gaussian::GaussianBeam;
 pub use kernels::{Endpoints, Legs};
 pub use mean::{mean_field, mean_field_cancellable};
 
@@ -80,6 +87,12 @@ pub enum Source {
         /// Position of the source.
         position: DVec3,
     },
+    /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves
+    /// `exp(i k w . (x - f))` weighted by the unit-integral vMF mask about its axis (the
+    /// propagation direction through the focus `f`). The exact wave solver supports it; the
+    /// Monte Carlo estimators refuse it ([`check_monte_carlo`]) until the near-field connections
+    /// are wired in.
+    GaussianBeam(GaussianBeam),
 }
 
 /// A sensor.
@@ -97,6 +110,12 @@ pub enum Sensor {
         /// Position of the sensor.
         position: DVec3,
     },
+    /// A lens of Gaussian (vMF) apodization focused at `focus`, looking along `axis`: the
+    /// direction the light travels from the medium into the sensor. It reads
+    /// `int m(w) e^(i k w . f) A(w) dw` of a field of outgoing far-field amplitude `A` (Eqs. 9-10);
+    /// its source form is the beam with the axis reversed. Supported by the exact wave solver;
+    /// refused by the Monte Carlo estimators for now ([`check_monte_carlo`]).
+    GaussianBeam(GaussianBeam),
 }
 
 /// The two sides of a path: which way a leg's direction points at the medium point (into it
@@ -128,6 +147,8 @@ pub(crate) enum Kind {
     Plane(DVec3),
     /// A point endpoint.
     Point(DVec3),
+    /// A focused Gaussian beam (source form).
+    Gaussian(GaussianBeam),
 }
 
 impl Source {
@@ -153,6 +174,7 @@ impl Source {
             Self::Point { position } => Self::Point {
                 position: point::validated("source.position", position, m)?,
             },
+            Self::GaussianBeam(b) => Self::GaussianBeam(b.validated("source", m)?),
         })
     }
 
@@ -163,6 +185,7 @@ impl Source {
                 direction: -direction,
             },
             Self::Point { position } => Sensor::Point { position },
+            Self::GaussianBeam(b) => Sensor::GaussianBeam(b.reversed()),
         }
     }
 
@@ -172,10 +195,15 @@ impl Source {
         match *self {
             Self::PlaneWave { direction } => Kind::Plane(direction),
             Self::Point { position } => Kind::Point(position),
+            Self::GaussianBeam(b) => Kind::Gaussian(b),
         }
     }
 
     /// The incoming leg at `x`: `upsilon(i -> x) = tau xi` and the propagation direction at `x`.
+    ///
+    /// # Panics
+    ///
+    /// For a Gaussian beam, which has no single leg (callers check [`check_monte_carlo`]).
     #[inline]
     pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
         self.kind().leg(m, k, x, Side::Source)
@@ -205,6 +233,7 @@ impl Sensor {
             Self::Point { position } => Self::Point {
                 position: point::validated("sensor.position", position, m)?,
             },
+            Self::GaussianBeam(b) => Self::GaussianBeam(b.validated("sensor", m)?),
         })
     }
 
@@ -215,6 +244,7 @@ impl Sensor {
                 direction: -direction,
             },
             Self::Point { position } => Source::Point { position },
+            Self::GaussianBeam(b) => Source::GaussianBeam(b.reversed()),
         }
     }
 
@@ -225,6 +255,10 @@ impl Sensor {
     }
 
     /// The outgoing leg from `x`: `upsilon(x -> v) = tau xi` and the unit direction leaving `x`.
+    ///
+    /// # Panics
+    ///
+    /// For a Gaussian beam, which has no single leg (callers check [`check_monte_carlo`]).
     #[inline]
     pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
         self.kind().leg(m, k, x, Side::Sensor)
@@ -238,8 +272,39 @@ impl Kind {
         match *self {
             Self::Plane(d) => plane::leg(m, k, d, x, side),
             Self::Point(p) => point::leg(m, k, p, x, side),
+            Self::Gaussian(_) => panic!("{}", GAUSSIAN_MONTE_CARLO),
         }
     }
+}
+
+/// Why the Monte Carlo estimators refuse Gaussian beams (for now).
+const GAUSSIAN_MONTE_CARLO: &str = "gaussian_beam endpoints are supported by the exact wave \
+    solver only: the near-field Monte Carlo connections (Bar et al. 2020, Eqs. 13-18) are not \
+    implemented yet";
+
+/// Checks that the Monte Carlo estimators can connect every endpoint: an error naming
+/// `sources[j]` or `sensors[j]` for a Gaussian beam, whose connection `Upsilon(x, w)` integrates
+/// over the aperture and is not wired into the estimators yet (the exact wave solver supports it).
+pub fn check_monte_carlo(sources: &[Source], sensors: &[Sensor]) -> Result<(), EndpointError> {
+    if let Some(j) = sources
+        .iter()
+        .position(|s| matches!(s, Source::GaussianBeam(_)))
+    {
+        return Err(check::invalid(
+            format!("sources[{j}]"),
+            GAUSSIAN_MONTE_CARLO,
+        ));
+    }
+    if let Some(j) = sensors
+        .iter()
+        .position(|s| matches!(s, Sensor::GaussianBeam(_)))
+    {
+        return Err(check::invalid(
+            format!("sensors[{j}]"),
+            GAUSSIAN_MONTE_CARLO,
+        ));
+    }
+    Ok(())
 }
 
 /// One connection between an endpoint and a point in the medium.

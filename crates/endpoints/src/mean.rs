@@ -99,7 +99,18 @@ pub fn mean_field_cancellable<M: Medium, P: PhaseFunction>(
     sen: Sensor,
     cancelled: &dyn Fn() -> bool,
 ) -> Result<Option<Complex64>, EndpointError> {
+    if matches!(src, Source::GaussianBeam(_)) || matches!(sen, Sensor::GaussianBeam(_)) {
+        return Err(EndpointError::InvalidInput {
+            field: "render.add_mean".into(),
+            reason: "the mean field of a gaussian_beam endpoint is not implemented; render \
+                     without the mean (render.add_mean = false)"
+                .into(),
+        });
+    }
     Ok(Some(match (src, sen) {
+        (Source::GaussianBeam(_), _) | (_, Sensor::GaussianBeam(_)) => {
+            unreachable!("refused above")
+        }
         // A point endpoint on either side: the attenuated direct path (Eq. 20), which is the
         // other endpoint's leg evaluated at the point.
         (Source::Point { position: p }, Sensor::Point { position: q }) => {

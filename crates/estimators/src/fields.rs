@@ -260,6 +260,7 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     batch: Option<u64>,
     shard: Option<Shard>,
 ) -> Result<FieldShard, EstimatorError> {
+    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
     if options.realizations == 0 {
         return Err(EstimatorError::InvalidInput {
             field: "realizations".into(),

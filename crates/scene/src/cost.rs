@@ -354,6 +354,14 @@ impl Problem {
     /// the paths first (errors name the field), then estimates memory and time. The guard
     /// ([`guard`]) decides whether to go ahead.
     pub fn estimate(&self, command: Command, threads: usize) -> Result<Estimate, SceneError> {
+        // Every command here is a Monte Carlo render (or the mean field, which Gaussian beams
+        // do not have yet): refuse what the estimators would refuse, naming the endpoint.
+        speckle_endpoints::check_monte_carlo(self.scene.sources(), self.scene.sensors()).map_err(
+            |e| {
+                let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
+                invalid(field, reason)
+            },
+        )?;
         let threads = threads.max(1) as f64;
         let j = self.pairs() as f64;
         let r = &self.render;

@@ -142,13 +142,27 @@ fn check_extinction(file: &SceneFile, m: &AnyMedium, wavelength: f64) -> Result<
 pub const ENDPOINT_COLUMNS: [&str; 7] = ["entry", "kind", "x", "y", "z", "p", "q"];
 
 /// One row of an endpoint table: the entry, the kind, the direction (plane wave, far field) or
-/// position (point), and the generator's two parameters.
+/// position (point, a Gaussian beam's focus), and the generator's two parameters (a Gaussian
+/// beam's concentration; its axis is in the sidecar).
 fn endpoint_row(e: &EndpointInfo) -> [f64; 7] {
     let kind = match e.kind {
         "plane" => 0.0,
         "point" => 1.0,
+        "gaussian_beam" => 3.0,
         _ => 2.0,
     };
+    if e.kind == "gaussian_beam" {
+        let [x, y, z] = e.position.unwrap_or([f64::NAN; 3]);
+        return [
+            e.entry as f64,
+            kind,
+            x,
+            y,
+            z,
+            e.concentration.unwrap_or(f64::NAN),
+            f64::NAN,
+        ];
+    }
     let [x, y, z] = e.direction.or(e.position).unwrap_or([f64::NAN; 3]);
     let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
     let u = |v: Option<usize>| v.map(|v| v as f64);

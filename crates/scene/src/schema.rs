@@ -247,6 +247,23 @@ pub enum SourceSpec {
         /// Position.
         position: [f64; 3],
     },
+    /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves weighted by
+    /// a unit-integral vMF mask about `axis`, focused at `focus` (which may lie inside the
+    /// medium). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    GaussianBeam {
+        /// The focal point.
+        focus: [f64; 3],
+        /// The propagation direction through the focus (default `+z`; `+y` in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// The mask's vMF concentration `gamma >= 0` (`0`: isotropic); give this or
+        /// `numerical_aperture`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        concentration: Option<f64>,
+        /// The numerical aperture in `(0, 1]`, `gamma = 4 / NA^2` (second-moment matching).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
+    },
     /// Plane waves: `direction` rotated about `axis` by each angle of `tilts_deg`.
     PlaneTilts {
         /// The untilted propagation direction (default `+z`; `+y` in flatland).
@@ -274,6 +291,24 @@ pub enum SensorSpec {
     Point {
         /// Position.
         position: [f64; 3],
+    },
+    /// A lens of Gaussian (vMF) apodization focused at `focus` (which may lie inside the medium),
+    /// reading the far-field amplitudes it collects weighted by its unit-integral mask about
+    /// `axis` (Bar et al. 2020, Eqs. 9-10). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    GaussianBeam {
+        /// The focal point.
+        focus: [f64; 3],
+        /// The viewing direction: light travels along it into the sensor (default `+z`; `+y` in
+        /// flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// The mask's vMF concentration `gamma >= 0` (`0`: isotropic); give this or
+        /// `numerical_aperture`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        concentration: Option<f64>,
+        /// The numerical aperture in `(0, 1]`, `gamma = 4 / NA^2` (second-moment matching).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
     },
     /// An `ny x nx` image of far-field directions `unit(tan(tx) e1 + tan(ty) e2 + c)` around
     /// `center = c`, with `e1 = unit(y x c)` (or `unit(x x c)` when `c` is along `y`),

@@ -53,7 +53,7 @@ fn far_directions(p: &Problem) -> Vec<DVec3> {
         .iter()
         .map(|s| match *s {
             Sensor::FarField { direction } => direction,
-            Sensor::Point { .. } => panic!("a point sensor"),
+            Sensor::Point { .. } | Sensor::GaussianBeam(_) => panic!("not a far-field sensor"),
         })
         .collect()
 }
@@ -251,4 +251,84 @@ fn the_summary_and_the_sidecar_describe_the_scene() {
         p.scene.phase().mean_cosine()
     );
     assert!(meta["derived"]["medium_info"].is_null());
+}
+
+/// `gaussian_beam` sources and sensors: focus (inside the medium allowed), axis default `+z`
+/// (`+y` in flatland), concentration or numerical aperture (`gamma = 4 / NA^2`), the sensor's
+/// source form reversed; errors name the field.
+#[test]
+fn gaussian_beams_load_and_name_their_fields() {
+    let scene = |src: &str, sen: &str, dim: u8| {
+        format!(
+            "wavelength = 1.0\ndimension = {dim}\n[medium]\nsize = [10, 10, {}]\n\
+             mean_free_path = 5\n[[sources]]\ntype = \"gaussian_beam\"\n{src}\n\
+             [[sensors]]\ntype = \"gaussian_beam\"\n{sen}\n",
+            if dim == 3 { "4" } else { "0" }
+        )
+    };
+    let p = load(&scene(
+        "focus = [0, 0, -2]\nnumerical_aperture = 0.5",
+        "focus = [1, 0, 0.5]\naxis = [0, 0.6, 0.8]\nconcentration = 3",
+        3,
+    ))
+    .unwrap();
+    let Source::GaussianBeam(b) = p.scene.sources()[0] else {
+        panic!("a gaussian beam source");
+    };
+    assert_eq!(
+        (b.focus, b.axis, b.concentration),
+        (DVec3::new(0.0, 0.0, -2.0), DVec3::Z, 16.0)
+    );
+    let Sensor::GaussianBeam(s) = p.scene.sensors()[0] else {
+        panic!("a gaussian beam sensor");
+    };
+    assert_eq!((s.axis, s.concentration), (DVec3::new(0.0, 0.6, 0.8), 3.0));
+    assert_eq!(
+        p.scene.sensors()[0].reciprocal(),
+        Source::GaussianBeam(s.reversed())
+    );
+    let flat = load(&scene(
+        "focus = [0, -1, 0]\nconcentration = 2",
+        "focus = [0, 1, 0]\nconcentration = 2",
+        2,
+    ))
+    .unwrap();
+    let Source::GaussianBeam(b) = flat.scene.sources()[0] else {
+        panic!("a gaussian beam source");
+    };
+    assert_eq!(b.axis, DVec3::Y);
+    let err = |src: &str, sen: &str, dim: u8| load(&scene(src, sen, dim)).unwrap_err().to_string();
+    let ok_sen = "focus = [0, 0, 3]\nconcentration = 1";
+    for (src, field) in [
+        ("focus = [0, 0, 1]", "sources[0].concentration"),
+        (
+            "focus = [0, 0, 1]\nconcentration = 1\nnumerical_aperture = 0.5",
+            "sources[0].concentration",
+        ),
+        (
+            "focus = [0, 0, 1]\nconcentration = -1",
+            "sources[0].concentration",
+        ),
+        (
+            "focus = [0, 0, 1]\nnumerical_aperture = 1.5",
+            "sources[0].numerical_aperture",
+        ),
+        (
+            "focus = [0, 0, 1]\naxis = [0, 0, 0]\nconcentration = 1",
+            "sources[0].axis",
+        ),
+        ("focus = [0, nan, 1]\nconcentration = 1", "sources[0].focus"),
+    ] {
+        let e = err(src, ok_sen, 3);
+        assert!(e.contains(field), "{src}: {e}");
+    }
+    let e = err(
+        "focus = [0, 0, 1]\nconcentration = 1",
+        "focus = [0, 0, 3]\naxis = [0, 0, 1]\nconcentration = 1",
+        2,
+    );
+    assert!(
+        e.contains("sources[0].focus") || e.contains("sensors[0]"),
+        "{e}"
+    );
 }

@@ -5,8 +5,9 @@
 //! (fitted scattering amplitudes reach `kappa ~ 3.4e3`, apertures times `i k` distances reach
 //! `|mu| ~ 1e5`).
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use num_complex::Complex64;
+
 /// `ln(4 pi)`, the log of the area of the unit sphere.
 pub(crate) const LN_4PI: f64 = 2.531_024_246_969_290_7;
 
@@ -150,7 +151,7 @@ pub(crate) fn inverse_mean_resultant_length(d: f64, cap: f64) -> f64 {
 }
 
 /// `e^z - 1` for complex `z`, accurate near `z = 0`.
-fn exp_m1_complex(z: Complex64) -> Complex64 {
+pub(crate) fn exp_m1_complex(z: Complex64) -> Complex64 {
     let (s, c) = z.im.sin_cos();
     let half = (0.5 * z.im).sin();
     // e^x cos y - 1 = (e^x - 1) cos y - 2 sin^2(y/2)
@@ -158,7 +159,7 @@ fn exp_m1_complex(z: Complex64) -> Complex64 {
 }
 
 /// `ln(1 + z)` for complex `z`, accurate near `z = 0` (principal branch).
-fn ln_1p_complex(z: Complex64) -> Complex64 {
+pub(crate) fn ln_1p_complex(z: Complex64) -> Complex64 {
     // |1 + z|^2 = 1 + (2 x + x^2 + y^2)
     let re = 0.5 * (2.0 * z.re + z.norm_sqr()).ln_1p();
     Complex64::new(re, z.im.atan2(1.0 + z.re))
@@ -269,6 +270,26 @@ impl ComplexVmf {
         self.mul(&other.conj())
     }
 
+    /// The function rotated by the real orthogonal matrix `r`: `h'(w) = h(r^T w)`, i.e.
+    /// `mu' = r mu` (real and imaginary parts rotated alike), so `h'(r w) = h(w)` and the sphere
+    /// integral is unchanged (`mu' . mu' = mu . mu` for orthogonal `r`). `r` is not checked.
+    pub fn rotated(&self, r: DMat3) -> Self {
+        let re = r * DVec3::new(self.mu[0].re, self.mu[1].re, self.mu[2].re);
+        let im = r * DVec3::new(self.mu[0].im, self.mu[1].im, self.mu[2].im);
+        Self {
+            log_scale: self.log_scale,
+            mu: std::array::from_fn(|j| Complex64::new(re[j], im[j])),
+        }
+    }
+
+    /// `ln int_{S^2} |h| dw`, the log of the sphere integral of the modulus
+    /// `|h(w)| = e^(Re log_scale + Re mu . w)`: the scale against which the (possibly much
+    /// smaller, cancelling) integral of `h` itself can be resolved.
+    pub fn ln_modulus_integral(&self) -> f64 {
+        let re = DVec3::new(self.mu[0].re, self.mu[1].re, self.mu[2].re);
+        self.log_scale.re + LN_4PI + ln_sinhc(re.length())
+    }
+
     /// `mu . mu = mu_x^2 + mu_y^2 + mu_z^2`, the bilinear (non-Hermitian) square (Eq. 20; the paper
     /// prints it without squares, see notes Sec. 4.1).
     pub fn mu_squared(&self) -> Complex64 {
@@ -290,6 +311,41 @@ impl ComplexVmf {
     /// at the zeros `beta = i pi n` of `sinh`.
     pub fn ln_sphere_integral(&self) -> Complex64 {
         self.log_scale + LN_4PI + ln_sinhc_complex(self.beta())
+    }
+
+    /// The exact convolution with the real lobe `e^(gamma w . psi)` evaluated at one direction
+    /// `w`, in log form: `ln int h(psi) e^(gamma w . psi) dpsi` (notes Sec. 4.4e; exact whenever
+    /// the outgoing direction is known, `B >= 2`).
+    pub fn ln_convolve_at(&self, gamma: f64, w: DVec3) -> Complex64 {
+        self.mul(&Self::real(0.0, gamma, w)).ln_sphere_integral()
+    }
+
+    /// The convolution approximation of Eqs. 31-32 (notes Sec. 4.4f): the function
+    /// `w -> int h(psi) e^(gamma w . psi) dpsi` approximated by the complex vMF
+    /// `exp(c + (gamma / beta_o) mu . w)`, linearising `beta(w) = sqrt((mu + gamma w)^2)` about
+    /// `w_o` (`beta_o = beta(w_o)`, principal root). The scale is matched at `w_o` with the full
+    /// sinh form, `c = ln eta + ln(4 pi sinh(beta_o) / beta_o) - (gamma / beta_o) mu . w_o`, so
+    /// the approximation is exact at `w_o` (the paper's Eq. 32 drops `e^(-2 beta_o)`); for
+    /// real `mu = g z` and `w_o = z` the parameter is `g gamma / (g + gamma) z` (variances add).
+    ///
+    /// Its error grows with the distance from `w_o`: the first neglected term of `beta(w)` is
+    /// `-(gamma mu . (w - w_o))^2 / (2 beta_o^3)`, so it is accurate near `w_o` and degrades in
+    /// the back directions of reflection (notes Sec. 4.7). `None` where `|beta_o|` is below
+    /// `1e-8 (|mu| + |gamma|)`, where the linearisation breaks down (a branch point).
+    pub fn convolve_approx(&self, gamma: f64, w_o: DVec3) -> Option<Self> {
+        let shifted = self.mul(&Self::real(0.0, gamma, w_o));
+        let beta = shifted.beta();
+        let size = self.mu.iter().map(|m| m.norm()).sum::<f64>() + gamma.abs();
+        if !(beta.norm() > 1e-8 * size) {
+            return None;
+        }
+        let ratio = gamma / beta;
+        let mu: [Complex64; 3] = self.mu.map(|m| ratio * m);
+        let at = mu[0] * w_o.x + mu[1] * w_o.y + mu[2] * w_o.z;
+        Some(Self {
+            log_scale: self.log_scale + LN_4PI + ln_sinhc_complex(beta) - at,
+            mu,
+        })
     }
 
     /// `int_{S^2} h dw = eta 4 pi sinh(beta) / beta` (Eq. 29). Overflows where the value does; use

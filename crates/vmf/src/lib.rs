@@ -4,7 +4,13 @@
 //! Eqs. 19-21, 28-29; `notes/nearfield-2020.md` Secs. 4.3-4.4 and 5).
 //!
 //! - [`ComplexVmf`]: `h(w) = exp(log_scale + mu . w)` with complex `mu`; products, conjugates
-//!   and the sphere integral (Eq. 29) in closed form.
+//!   rotations, the sphere integral (Eq. 29) and the convolution with a lobe (exact at one
+//!   direction; the approximation of Eqs. 31-32 as a function) in closed form.
+//! - [`CircleVmf`]: the flatland analogue on the unit circle, whose integral is
+//!   `2 pi eta I_0(sqrt(mu . mu))` ([`ln_bessel_i0`], complex argument, log form).
+//! - [`Aperture`], [`CircleAperture`]: unit-integral Gaussian lens apertures and their weighted
+//!   aperture functions (Eqs. 23-27) as complex vMFs; the exact connection `Upsilon` of Eqs. 15-16
+//!   for a mixture amplitude ([`Aperture::ln_upsilon`]).
 //! - [`VmfMixture`]: a real amplitude `s(mu) = sum_m pi_m e^(gamma_m mu)` with lobes on the
 //!   axis `+-i` (Eq. 28), with the methods of a normalised phase function (amplitude, density,
 //!   exact sampling of the cosine, closed-form mean cosine).
@@ -40,12 +46,20 @@
 #![deny(missing_docs)]
 
 mod algebra;
+mod aperture;
+mod bessel;
+mod circle;
 mod fit;
 mod mixture;
 
 pub use algebra::{
     ComplexVmf, ln_sinhc, ln_sinhc_complex, ln_vmf_normaliser, mean_resultant_length,
 };
+pub use aperture::{
+    Aperture, CircleAperture, MAX_APERTURE_GAMMA, gamma_from_na, ln_sum_exp_complex,
+};
+pub use bessel::{bessel_ratio_over_z, ln_bessel_i0};
+pub use circle::{CircleVmf, ln_circle_normaliser};
 pub use fit::{FitOptions, FitReport, G_TOLERANCE, fit_amplitude, fit_amplitude_fixed};
 pub use mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfLobe, VmfMixture};
 

@@ -296,6 +296,7 @@ pub(crate) fn solve_checked(
                 let at = match sensor {
                     speckle_endpoints::Sensor::Point { position } => position,
                     speckle_endpoints::Sensor::FarField { direction } => direction,
+                    speckle_endpoints::Sensor::GaussianBeam(b) => b.focus,
                 };
                 invalid(
                     format!("pairs[{j}]"),
@@ -329,6 +330,9 @@ impl Space {
 impl FreeSpace for Space {
     fn wavenumber(&self) -> f64 {
         self.kernel.wavenumber()
+    }
+    fn dimension(&self) -> speckle_medium::Dimension {
+        self.kernel.dimension()
     }
     #[inline]
     fn point_source(&self, r: f64) -> Complex64 {

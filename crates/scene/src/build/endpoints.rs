@@ -15,7 +15,7 @@ use crate::validate::{
     position,
 };
 use serde::Serialize;
-use speckle_endpoints::{Sensor, Source};
+use speckle_endpoints::{EndpointError, GaussianBeam, Sensor, Source};
 use speckle_medium::{Aabb, DVec3, Dimension};
 
 /// One expanded source or sensor, as the sidecars describe it.
@@ -53,6 +53,9 @@ pub struct EndpointInfo {
     /// `far_arc`: the rotation angle, degrees.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_deg: Option<f64>,
+    /// A Gaussian beam's aperture concentration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub concentration: Option<f64>,
 }
 
 impl EndpointInfo {
@@ -82,6 +85,48 @@ impl EndpointInfo {
             ..Self::default()
         }
     }
+
+    /// A Gaussian beam: its focus and the axis as given (propagation or viewing direction).
+    fn gaussian(entry: usize, b: &GaussianBeam, axis: DVec3) -> Self {
+        Self {
+            entry,
+            kind: "gaussian_beam",
+            position: Some(b.focus.to_array()),
+            direction: Some(axis.to_array()),
+            concentration: Some(b.concentration),
+            ..Self::default()
+        }
+    }
+}
+
+/// A `gaussian_beam` entry (`prefix` is `sources[i]` or `sensors[i]`): focus, axis (default
+/// filled in) and exactly one of `concentration` and `numerical_aperture`. Returns the beam with
+/// the axis as given (a sensor's source form reverses it).
+fn gaussian_beam(
+    prefix: &str,
+    focus: [f64; 3],
+    axis: &mut Option<[f64; 3]>,
+    concentration: Option<f64>,
+    numerical_aperture: Option<f64>,
+    dim: Dimension,
+) -> Result<GaussianBeam, SceneError> {
+    let f = |k: &str| format!("{prefix}.{k}");
+    let p = position(&f("focus"), focus, dim)?;
+    let a = flat_direction(&f("axis"), *axis.get_or_insert(forward(dim)), dim)?;
+    let built = match (concentration, numerical_aperture) {
+        (Some(g), None) => GaussianBeam::new(prefix, p, a, g),
+        (None, Some(na)) => GaussianBeam::with_numerical_aperture(prefix, p, a, na),
+        _ => {
+            return Err(invalid(
+                f("concentration"),
+                "give exactly one of concentration and numerical_aperture",
+            ));
+        }
+    };
+    built.map_err(|e| {
+        let EndpointError::InvalidInput { field, reason } = e;
+        invalid(field, reason)
+    })
 }
 
 /// The layout of a sensor list that is one 2D grid (an image).
@@ -186,6 +231,23 @@ pub fn build_sources(
                 out.push(Source::Point { position: p });
                 desc.push(EndpointInfo::point(i, p));
             }
+            SourceSpec::GaussianBeam {
+                focus,
+                axis,
+                concentration,
+                numerical_aperture,
+            } => {
+                let b = gaussian_beam(
+                    &format!("sources[{i}]"),
+                    *focus,
+                    axis,
+                    *concentration,
+                    *numerical_aperture,
+                    dim,
+                )?;
+                out.push(Source::GaussianBeam(b));
+                desc.push(EndpointInfo::gaussian(i, &b, b.axis));
+            }
             SourceSpec::PlaneTilts {
                 direction: d,
                 axis,
@@ -285,6 +347,16 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 )?;
                 out.push(Sensor::Point { position: p });
                 desc.push(EndpointInfo::point(i, p));
+            }
+            SensorSpec::GaussianBeam {
+                focus,
+                axis,
+                concentration,
+                numerical_aperture,
+            } => {
+                let b = gaussian_beam(&e, *focus, axis, *concentration, *numerical_aperture, dim)?;
+                out.push(Sensor::GaussianBeam(b));
+                desc.push(EndpointInfo::gaussian(i, &b, b.axis));
             }
             SensorSpec::FarGrid {
                 center,

@@ -47,7 +47,7 @@ pub fn coherence_name(c: Coherence) -> &'static str {
 fn first_plane(sources: &[Source]) -> Option<DVec3> {
     sources.iter().find_map(|s| match s {
         Source::PlaneWave { direction } => Some(*direction),
-        Source::Point { .. } => None,
+        Source::Point { .. } | Source::GaussianBeam(_) => None,
     })
 }
 
