@@ -502,6 +502,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             ),
         });
     }
+    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
     speckle_motion::check_lags("lags", lags).map_err(motion_error)?;
     let model = model
         .clone()
