@@ -1,6 +1,6 @@
 //! End-to-end tests of `speckle g1` and the `[motion]` table: the zero lag of `g1` is bitwise
 //! the intensity render of the same scene and seed, `g1(0) = 1`, the correlation decays with
-//! the lag; bad input exits with code 2 and names the field.
+//! the lag, `g2 = 1 + |g1|^2`, the contrast falls from 1; bad input exits with code 2 and names the field.
 
 use std::path::Path;
 
@@ -73,6 +73,24 @@ fn g1_zero_lag_is_the_intensity_and_decays() {
             "pair {j}: {c:?}"
         );
     }
+    // g2 = 1 + |g1|^2; the contrast of an exposure equal to each lag starts at 1 and falls as
+    // the speckle decorrelates; the plot is written.
+    let g2 = npy_f64(&out.join("m.g2.npy"));
+    let k = npy_f64(&out.join("m.contrast.npy"));
+    assert_eq!((g2.len(), k.len()), (6, 6));
+    for e in 0..6 {
+        let g1_sq = g[2 * e] * g[2 * e] + g[2 * e + 1] * g[2 * e + 1];
+        assert!((g2[e] - 1.0 - g1_sq).abs() < 1e-15, "g2[{e}]");
+    }
+    for j in 0..2 {
+        let k = &k[3 * j..3 * j + 3];
+        assert!(
+            k[0] == 1.0 && k[1] < 1.0 && k[2] < k[1] && k[2] > 0.0,
+            "{k:?}"
+        );
+    }
+    let svg = std::fs::read_to_string(out.join("m.g1.svg")).unwrap();
+    assert!(svg.contains("|g1(t)|") && svg.contains("pair 1"), "{svg}");
 }
 
 #[test]

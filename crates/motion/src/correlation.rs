@@ -22,12 +22,23 @@ use num_complex::Complex64;
 /// assert_eq!(g[1], Complex64::new(0.5, 0.5));
 /// ```
 pub fn g1(c: &[Complex64]) -> Result<Vec<Complex64>, MotionError> {
-    let c0 = *c
-        .first()
-        .ok_or_else(|| invalid("correlation", "needs at least one value"))?;
+    normalise(c, 0)
+}
+
+/// `g1 = c / c[zero]` for a correlation `c` whose lag number `zero` is 0 (lags in any order).
+pub fn normalise(c: &[Complex64], zero: usize) -> Result<Vec<Complex64>, MotionError> {
+    let c0 = *c.get(zero).ok_or_else(|| {
+        invalid(
+            "correlation",
+            format!(
+                "needs a value at the zero lag {zero} (got {} values)",
+                c.len()
+            ),
+        )
+    })?;
     if !(c0.re > 0.0 && c0.re.is_finite()) {
         return Err(invalid(
-            "correlation[0]",
+            format!("correlation[{zero}]"),
             format!("the zero-lag value must be a positive intensity (got {c0})"),
         ));
     }
@@ -123,6 +134,33 @@ pub fn contrast(lags: &[f64], g1_sq: &[f64], exposure: f64, beta: f64) -> Result
     Ok((2.0 * beta / t * sum).max(0.0).sqrt())
 }
 
+/// [`contrast`] for an exposure equal to every lag: `K(lags[i])` for each `i` (`K(0) =
+/// sqrt(beta)`), in `O(L)` through the running integrals `F0(T) = int_0^T |g1|^2` and
+/// `F1(T) = int_0^T tau |g1|^2` of the same linear interpolation, `K^2 = (2 beta / T) (F0 -
+/// F1 / T)`. Same requirements as [`contrast`] on the lags and values.
+pub fn contrast_curve(lags: &[f64], g1_sq: &[f64], beta: f64) -> Result<Vec<f64>, MotionError> {
+    let last = *lags.last().unwrap_or(&0.0);
+    if last > 0.0 {
+        // Checks the lags, the values and beta once (as an exposure of the whole range).
+        contrast(lags, g1_sq, last, beta)?;
+    } else {
+        contrast(lags, g1_sq, 1.0, beta)?;
+    }
+    let (mut f0, mut f1) = (0.0, 0.0);
+    let mut out = Vec::with_capacity(lags.len());
+    out.push(beta.sqrt());
+    for i in 1..lags.len() {
+        let (a, b) = (lags[i - 1], lags[i]);
+        let (fa, fb) = (g1_sq[i - 1], g1_sq[i]);
+        let (m, fm) = (0.5 * (a + b), 0.5 * (fa + fb));
+        f0 += (b - a) * fm;
+        // Simpson is exact for the quadratic tau f(tau).
+        f1 += (b - a) / 6.0 * (a * fa + 4.0 * m * fm + b * fb);
+        out.push((2.0 * beta / b * (f0 - f1 / b)).max(0.0).sqrt());
+    }
+    Ok(out)
+}
+
 /// The closed-form contrast of an exponential `g1 = exp(-tau / tc)` (Brownian motion in the
 /// diffusion regime is close to it): `K^2 = beta (e^{-2x} - 1 + 2x) / (2 x^2)`, `x = T / tc`.
 pub fn contrast_exponential(exposure: f64, tc: f64, beta: f64) -> f64 {
@@ -148,5 +186,29 @@ mod tests {
         assert!(contrast(&[0.0, 0.0], &[1.0, 1.0], 0.5, 1.0).is_err());
         assert!(g2(&[Complex64::ONE], 0.0).is_err());
         assert!(g1(&[Complex64::ZERO]).is_err());
+        assert!(normalise(&[Complex64::ONE], 1).is_err());
+    }
+
+    #[test]
+    fn contrast_curve_is_contrast_at_every_lag() {
+        // Unevenly spaced lags, a decaying oscillating |g1|^2: the running integrals against
+        // the direct integral at each exposure.
+        let lags: Vec<f64> = (0..60).map(|i| (i as f64 * 0.07).powf(1.5)).collect();
+        let sq: Vec<f64> = lags
+            .iter()
+            .map(|t| (-t / 0.8).exp() * (0.5 + 0.5 * (3.0 * t).cos()))
+            .collect();
+        let curve = contrast_curve(&lags, &sq, 0.7).unwrap();
+        assert_eq!(curve[0], 0.7f64.sqrt());
+        for (i, &t) in lags.iter().enumerate().skip(1) {
+            let k = contrast(&lags, &sq, t, 0.7).unwrap();
+            assert!(
+                (curve[i] - k).abs() <= 1e-12 * k,
+                "lag {i}: {} vs {k}",
+                curve[i]
+            );
+        }
+        assert!(contrast_curve(&[0.0, 1.0], &[1.0], 1.0).is_err());
+        assert!(contrast_curve(&[1.0, 2.0], &[1.0, 1.0], 1.0).is_err());
     }
 }

@@ -17,7 +17,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use speckle::estimators::{EstimatorError, render_single_scattering};
-use speckle::runs::{self, Kind, Outcome, RunError, ShardFile};
+use speckle::runs::{self, Kind, Outcome, RunError, ShardFile, temporal};
 use speckle::scene::cost::{self, Command};
 use speckle::scene::{LoadError, Overrides, Problem, examples, load_file, load_str};
 use speckle::stats::{Progress, Shard, ShardError as LibShardError};
@@ -636,6 +636,43 @@ fn single<'py>(
     Ok(d)
 }
 
+/// Renders the temporal field correlation of every pair at the lags of `[motion]`
+/// (`speckle g1`): `C(t)`, its standard errors, `g1`, `g2` and the speckle contrast `K(T)`.
+#[pyfunction]
+#[pyo3(signature = (problem, threads=None, force=false))]
+fn g1<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    threads: Option<usize>,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = &problem.p;
+    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    temporal::guard(p, t, force).map_err(|e| run_error(py, e))?;
+    let r = interruptible(py, threads, |pr| temporal::temporal(p, pr))?
+        .map_err(|e| run_error(py, e))?;
+    let shape = [r.pairs, r.lags.len()];
+    let real = |v: &[f64]| -> PyResult<Bound<'py, PyAny>> {
+        Ok(PyArray1::from_slice(py, v).reshape(shape)?.into_any())
+    };
+    let d = PyDict::new(py);
+    d.set_item("kind", "g1")?;
+    d.set_item("correlation", c16(py, &r.correlation, &shape)?)?;
+    d.set_item(
+        "correlation_stderr",
+        c16(py, &r.correlation_stderr, &shape)?,
+    )?;
+    d.set_item("lags", PyArray1::from_slice(py, &r.lags))?;
+    d.set_item(
+        "g1",
+        r.g1.as_deref().map(|g| c16(py, g, &shape)).transpose()?,
+    )?;
+    d.set_item("g2", r.g2.as_deref().map(real).transpose()?)?;
+    d.set_item("contrast", r.contrast.as_deref().map(real).transpose()?)?;
+    d.set_item("paths", r.paths)?;
+    Ok(d)
+}
+
 /// The speckle mean of every pair (closed form; `speckle mean`).
 #[pyfunction]
 fn mean<'py>(py: Python<'py>, problem: &PyProblem) -> PyResult<Bound<'py, PyDict>> {
@@ -835,6 +872,7 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render_shard, m)?)?;
     m.add_function(wrap_pyfunction!(single, m)?)?;
     m.add_function(wrap_pyfunction!(mean, m)?)?;
+    m.add_function(wrap_pyfunction!(g1, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     Ok(())
 }

@@ -74,3 +74,29 @@ def test_settings_replace_the_scenes_like_the_command_line_options(
     same(out / "tiny.cov.npy", c.cov)
     assert c.paths == 3001 and c.seed == 9
     assert c.scene.settings["render"]["coherence"] == "forward_only"
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_g1_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
+    """`speckle.g1` writes the arrays of `speckle g1` bitwise; g1(0) = 1, g2 = 1 + |g1|^2, and
+    the zero lag is bitwise the intensity."""
+    scene_file = tmp_path / "moving.toml"
+    scene_file.write_text(
+        tiny_file.read_text() + '\n[motion]\ndiffusion = 0.01\nlags = [0.0, 0.5, 2.0]\n'
+    )
+    out = tmp_path / "out"
+    cli(speckle_bin, "g1", str(scene_file), "--out", str(out), "-q", "--paths", "3001")
+    r = speckle.g1(scene_file, paths=3001, threads=threads)
+    for key in ["correlation", "correlation_stderr", "lags", "g1", "g2", "contrast"]:
+        same(out / f"tiny.{key}.npy", getattr(r, key))
+    assert r.correlation.shape == (12, 3) and r.paths == 3001
+    assert np.all(r.g1[:, 0] == 1.0)
+    assert np.allclose(r.g2, 1.0 + np.abs(r.g1) ** 2, rtol=0, atol=1e-15)
+    i = speckle.intensity(scene_file, paths=3001, threads=threads)
+    assert r.correlation[:, 0].real.tobytes() == i.intensity.ravel().tobytes()
+
+
+def test_g1_needs_motion(tiny_file):
+    with pytest.raises(speckle.SceneError) as e:
+        speckle.g1(tiny_file)
+    assert e.value.field == "motion"

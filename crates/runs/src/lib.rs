@@ -9,6 +9,8 @@
 //!   serialisable ([`ShardFile::to_bytes`]); [`merge`] combines any set of shards that covers
 //!   the run into exactly (bitwise) the single run's estimate, refusing shards of different
 //!   scenes, seeds or renders, overlapping shards, and naming missing ones by index.
+//! - temporal correlations of moving scatterers with what experiments read from them (`g1`,
+//!   `g2`, the speckle contrast): [`temporal`].
 //!
 //! Design decision: a shard is not a run of fewer paths but a range of the single run's own
 //! work units, and it keeps each unit's result (each batch's sums), so that a merge replays the
@@ -21,10 +23,12 @@
 mod file;
 mod identity;
 mod merge;
+pub mod temporal;
 
 pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
+pub use temporal::{Temporal, temporal};
 
 use num_complex::Complex64;
 use speckle_estimators::{

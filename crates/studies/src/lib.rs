@@ -5,6 +5,7 @@
 //! - [`memory`]: the memory effect versus wavelength for Mie spheres in a slab (Bar et al. 2019,
 //!   Fig. 11), against diffusion theory (Eq. 39);
 //! - [`plot`]: its figure, an SVG drawn with `plotters`;
+//! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
 //! - [`examples`]: the embedded study files of both panels of Fig. 11.
 //!
 //! Design decision: a study is a library, not a command: its schema, validation, band
@@ -17,6 +18,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod curves;
 pub mod examples;
 pub mod memory;
 pub mod plot;

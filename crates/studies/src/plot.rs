@@ -10,8 +10,8 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-/// Curve colours, one per wavelength (cycled).
-const COLOURS: [RGBColor; 8] = [
+/// Curve colours, one per wavelength or curve (cycled).
+pub(crate) const COLOURS: [RGBColor; 8] = [
     RGBColor(0x1f, 0x77, 0xb4),
     RGBColor(0x2c, 0xa0, 0x2c),
     RGBColor(0xd6, 0x27, 0x28),
@@ -35,7 +35,7 @@ const DOTTED: (u32, u32) = (2, 3);
 const FONT: &str = "sans-serif";
 
 /// A font of `px` pixels (`plotters` writes font sizes as `size / 1.24`).
-fn font(px: f64) -> FontDesc<'static> {
+pub(crate) fn font(px: f64) -> FontDesc<'static> {
     (FONT, px * 1.24).into_font()
 }
 
@@ -57,7 +57,7 @@ pub fn power_of_ten(e: i32) -> String {
 #[error("drawing the plot failed: {0}")]
 pub struct PlotError(String);
 
-fn plot_error(e: impl std::fmt::Display) -> PlotError {
+pub(crate) fn plot_error(e: impl std::fmt::Display) -> PlotError {
     PlotError(e.to_string())
 }
 

@@ -1,76 +1,77 @@
-//! `speckle g1`: temporal field correlations of moving scatterers (Bar et al. 2023), `C(t)` and
-//! `g1(t) = C(t) / C(0)` of every pair at the lags of `[motion]`, every lag from the same paths.
+//! `speckle g1`: temporal field correlations of moving scatterers (Bar et al. 2023), `C(t)`,
+//! `g1`, `g2` and the speckle contrast `K(T)` of every pair at the lags of `[motion]`, every
+//! lag from the same paths (`speckle::runs::temporal`), and a plot of `|g1(t)|`.
 
-use super::covariance::{Args, options};
+use super::covariance::Args;
 use super::*;
 use crate::error;
-use speckle::estimators::{Entries, render_correlation};
-use speckle::scene::SceneError;
+use speckle::runs::temporal::{self, Temporal};
 use speckle::scene::npy::{encode_c16, encode_f8};
+use speckle::studies::curves::{Curve, Figure, MAX_CURVES};
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
-    let Some(motion) = p.motion.clone() else {
-        return Err(p
-            .in_document(SceneError::InvalidInput {
-                field: "motion".into(),
-                reason: "`speckle g1` needs a [motion] table (diffusion, drift, lags)".into(),
-            })
-            .into());
-    };
+    temporal::motion(&p).map_err(error::runs)?;
     let mut staged = plan(&p, estimate(&p, Command::G1), run)?;
-    let opts = options(&p);
-    let (est, wall) = run.timed(&p, opts.paths, "paths", error::estimator, |pr| {
-        render_correlation(
-            &p.scene,
-            &motion.model,
-            &motion.lags,
-            &Entries::Diagonal,
-            &opts,
-            pr,
-        )
+    let (t, wall) = run.timed(&p, p.render.paths, "paths", error::runs, |pr| {
+        temporal::temporal(&p, pr)
     })?;
-    let (j, nl) = (p.pairs(), motion.lags.len());
-    // (J, L) arrays, pair-major.
-    let mut c = vec![Complex64::new(0.0, 0.0); j * nl];
-    let mut se = c.clone();
-    for e in 0..j {
-        for l in 0..nl {
-            let (v, s) = est.total(l, e);
-            c[e * nl + l] = v;
-            se[e * nl + l] = s;
-        }
-    }
+    let (j, nl) = (t.pairs, t.lags.len());
     let n = &p.name;
     let mut files = json!({
         "shape": [j, nl],
-        "layout": "complex128 (J, L): [j, l] = pairs[j] at motion.lags[l]; lags: float64 (L,)",
-        "content": "correlation: C[j, j](t) = E[u_j(t1) conj(u_j(t1 + t))] - |E u_j|^2; \
-                    correlation_stderr: its standard errors (real part: of Re, imaginary: of \
-                    Im; batch means over 128 batches); g1: C(t) / C(0), written when a lag is \
-                    0; g2 = 1 + beta |g1|^2 (Siegert)",
+        "layout": "(J, L), pair-major: [j, l] = pairs[j] at motion.lags[l]; lags: float64 (L,)",
+        "content": "correlation (complex128): C[j, j](t) = E[u_j(t1) conj(u_j(t1 + t))] - \
+                    |E u_j|^2; correlation_stderr: its standard errors (real part: of Re, \
+                    imaginary: of Im; batch means over 128 batches); g1 (complex128): C(t) / \
+                    C(0), written when a lag is 0; g2 (float64): 1 + |g1|^2 (Siegert, beta = 1; \
+                    g2 - 1 scales with a detector's beta); contrast (float64): the speckle \
+                    contrast K(T) of an exposure T equal to each lag (beta = 1, K scales with \
+                    sqrt(beta); |g1|^2 interpolated linearly), written when the lags start at \
+                    0 and increase",
     });
     let arrays = [
-        ("correlation", encode_c16(&[j, nl], &c)),
-        ("correlation_stderr", encode_c16(&[j, nl], &se)),
-        ("lags", encode_f8(&[nl], &motion.lags)),
+        ("correlation", encode_c16(&[j, nl], &t.correlation)),
+        (
+            "correlation_stderr",
+            encode_c16(&[j, nl], &t.correlation_stderr),
+        ),
+        ("lags", encode_f8(&[nl], &t.lags)),
     ];
-    // g1 = C(t) / C(0) when the zero lag is rendered and C(0) > 0 for every pair.
-    if let Some(z) = motion.lags.iter().position(|t| *t == 0.0)
-        && (0..j).all(|e| c[e * nl + z].re > 0.0)
-    {
-        let g1: Vec<Complex64> = (0..j * nl)
-            .map(|i| c[i] / c[(i / nl) * nl + z].re)
-            .collect();
+    stage_arrays(&mut staged, &mut files, n, arrays);
+    if let Some(g1) = &t.g1 {
         stage_arrays(
             &mut staged,
             &mut files,
             n,
-            [("g1", encode_c16(&[j, nl], &g1))],
+            [("g1", encode_c16(&[j, nl], g1))],
         );
     }
-    stage_arrays(&mut staged, &mut files, n, arrays);
-    let max_rel = max_relative_error(c.iter().zip(&se).map(|(v, s)| (v.norm(), s.norm())));
+    if let Some(g2) = &t.g2 {
+        stage_arrays(
+            &mut staged,
+            &mut files,
+            n,
+            [("g2", encode_f8(&[j, nl], g2))],
+        );
+    }
+    if let Some(k) = &t.contrast {
+        stage_arrays(
+            &mut staged,
+            &mut files,
+            n,
+            [("contrast", encode_f8(&[j, nl], k))],
+        );
+    }
+    let svg_file = format!("{n}.g1.svg");
+    staged.add(svg_file.clone(), figure(&p, &t).svg()?.into_bytes());
+    files["svg"] = json!(svg_file);
+    let max_rel = max_relative_error(
+        t.correlation
+            .iter()
+            .zip(&t.correlation_stderr)
+            .map(|(v, s)| (v.norm(), s.norm())),
+    );
     let summary = json!({
         "lags": nl,
         "max_relative_stderr": max_rel,
@@ -81,9 +82,62 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     say!(
         "{n}: g1 of J = {j} pairs at {nl} lags from {} paths in {wall:.2} s ({} threads); max \
          relative stderr {:.2}%",
-        opts.paths,
+        t.paths,
         threads(),
         100.0 * max_rel
     );
     finish(staged)
+}
+
+/// `|g1(t)|` of the first pairs (or `|C(t)|` when there is no zero lag), with error bars of
+/// one standard error of `C(t)` scaled by `1 / C(0)` (the error of `C(0)` is not included).
+fn figure(p: &Problem, t: &Temporal) -> Figure {
+    let nl = t.lags.len();
+    let zero = t.lags.iter().position(|x| *x == 0.0);
+    let (values, scale): (&[Complex64], Vec<f64>) = match (&t.g1, zero) {
+        (Some(g), Some(z)) => (
+            g,
+            t.correlation
+                .chunks_exact(nl)
+                .map(|c| 1.0 / c[z].re)
+                .collect(),
+        ),
+        _ => (&t.correlation, vec![1.0; t.pairs]),
+    };
+    let curves = (0..t.pairs.min(MAX_CURVES + 1))
+        .map(|e| Curve {
+            label: format!("pair {e}"),
+            x: t.lags.clone(),
+            y: values[e * nl..(e + 1) * nl]
+                .iter()
+                .map(|v| v.norm())
+                .collect(),
+            err: t.correlation_stderr[e * nl..(e + 1) * nl]
+                .iter()
+                .map(|s| s.norm() * scale[e])
+                .collect(),
+        })
+        .collect();
+    let more = t.pairs.saturating_sub(MAX_CURVES + 1);
+    Figure {
+        title: format!("{}: temporal field correlation (Bar et al. 2023)", p.name),
+        subtitle: format!(
+            "{} pairs, {} lags, {} paths; error bars: one standard error of C(t) / C(0){}",
+            t.pairs,
+            nl,
+            t.paths,
+            if more > 0 {
+                format!("; {more} further pairs in the .npy files")
+            } else {
+                String::new()
+            }
+        ),
+        x_label: "lag t (the scene's time unit)".into(),
+        y_label: if t.g1.is_some() {
+            "|g1(t)|".into()
+        } else {
+            "|C(t)|".into()
+        },
+        curves,
+    }
 }

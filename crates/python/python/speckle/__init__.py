@@ -55,6 +55,7 @@ __all__ = [
     "EXAMPLES",
     "CovarianceResult",
     "FieldsResult",
+    "G1Result",
     "IntensityResult",
     "MeanResult",
     "Result",
@@ -66,6 +67,7 @@ __all__ = [
     "WaveResult",
     "covariance",
     "fields",
+    "g1",
     "intensity",
     "load",
     "mean",
@@ -380,7 +382,31 @@ class MeanResult(Result):
     """``(J,)`` complex128."""
 
 
+@dataclass(frozen=True)
+class G1Result(Result):
+    """Temporal field correlations of moving scatterers (``speckle g1``, Bar et al. 2023) of
+    every pair at the lags of the scene's ``[motion]`` table. Arrays are ``(J, L)``: pair ``j``
+    at ``lags[l]``."""
+
+    correlation: np.ndarray
+    """``C[j, j](t) = E[u_j(t1) conj(u_j(t1 + t))] - |E u_j|^2``, complex128."""
+    correlation_stderr: np.ndarray
+    """Its standard errors (real part: of the real part; imaginary: of the imaginary part)."""
+    lags: np.ndarray
+    """``(L,)`` float64, as in ``[motion]``."""
+    g1: Optional[np.ndarray]
+    """``C(t) / C(0)`` (complex128), when a lag is 0."""
+    g2: Optional[np.ndarray]
+    """``1 + |g1|^2`` (Siegert with ``beta = 1``; ``g2 - 1`` scales with a detector's beta)."""
+    contrast: Optional[np.ndarray]
+    """Speckle contrast ``K(T)`` of an exposure ``T`` equal to each lag (``beta = 1``), when the
+    lags start at 0 and increase."""
+    paths: int
+    """Number of sampled paths."""
+
+
 _RESULTS = {
+    "g1": G1Result,
     "covariance": CovarianceResult,
     "intensity": IntensityResult,
     "fields": FieldsResult,
@@ -518,6 +544,26 @@ def single(
     """Renders the single-scattering covariance of Eq. 41 alone (first vertices only)."""
     s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
     return _result(s, _speckle.single(s._p, threads, force))  # type: ignore[return-value]
+
+
+def g1(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> G1Result:
+    """Renders the temporal field correlation ``C(t)`` of every pair at the lags of the scene's
+    ``[motion]`` table (Bar et al. 2023), with ``g1``, ``g2`` and the speckle contrast; every
+    lag comes from the same paths. A scene without ``[motion]`` raises :class:`SceneError`
+    naming ``motion``.
+
+    >>> r = speckle.g1(scene)                       # doctest: +SKIP
+    >>> abs(r.g1[0])                                # |g1(t)| of the first pair
+    """
+    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    return _result(s, _speckle.g1(s._p, threads, force))  # type: ignore[return-value]
 
 
 def mean(scene: SceneLike) -> MeanResult:
