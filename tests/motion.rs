@@ -270,6 +270,51 @@ fn brownian_correlation_depends_on_d_times_t() {
     }
 }
 
+/// Without drift, lags that are whole multiples of one step are taken as powers of one
+/// exponential per term (a running product); with one irregular lag added, every lag is
+/// evaluated directly. The same paths give the same values to rounding, lag by lag (each lag
+/// accumulates on its own), for every entry, Brownian motion per material included.
+#[test]
+fn powers_of_regular_lags_equal_the_direct_factors() {
+    let model = MotionModel::uniform(Motion::brownian(0.02).unwrap());
+    for scene in [far_scene(), point_scene()] {
+        for coherence in [Coherence::ForwardAndReversed, Coherence::ForwardOnly] {
+            let o = opts(701, 21, coherence);
+            let regular = [0.0, 0.4, -0.8, 1.2, 2.0, 0.4];
+            let mut irregular = regular.to_vec();
+            irregular.push(1000.0 * std::f64::consts::PI);
+            let a = render_correlation(&scene, &model, &regular, &Entries::Full, &o, &NoProgress)
+                .unwrap();
+            let b = render_correlation(&scene, &model, &irregular, &Entries::Full, &o, &NoProgress)
+                .unwrap();
+            let scale = a.per_lag[0].total.value.get(0, 0).norm();
+            for l in 0..regular.len() {
+                for part in ["single", "multiple", "total"] {
+                    let pick = |c: &CorrelationEstimate| {
+                        let e = &c.per_lag[l];
+                        let m = match part {
+                            "single" => &e.single,
+                            "multiple" => &e.multiple,
+                            _ => &e.total,
+                        };
+                        (m.value.as_slice().to_vec(), m.std_error.as_slice().to_vec())
+                    };
+                    let ((va, sa), (vb, sb)) = (pick(&a), pick(&b));
+                    for (x, y) in va.iter().zip(&vb).chain(sa.iter().zip(&sb)) {
+                        assert!(
+                            (x - y).norm() <= 1e-12 * scale,
+                            "lag {l} {part}: {x} vs {y}"
+                        );
+                    }
+                }
+            }
+            // The decay is there: |C(2.0)| < |C(0.4)| < C(0) on the diagonal.
+            let d = |l: usize| a.per_lag[l].total.value.get(0, 0).norm();
+            assert!(d(4) < d(1) && d(1) < d(0), "{} {} {}", d(0), d(1), d(4));
+        }
+    }
+}
+
 /// The smallest eigenvalue of the Hermitian matrix `m` (n x n, row-major).
 fn min_eigenvalue(m: &[Complex64], n: usize) -> f64 {
     let a = faer::Mat::<faer::c64>::from_fn(n, n, |r, c| {

@@ -150,6 +150,55 @@ struct Plan {
     /// At most four (forward/reversed) term combinations per entry.
     combos: usize,
     k: f64,
+    /// Without drift, lags that are whole multiples of one step: their factors are powers of
+    /// one exponential per term.
+    powers: Option<Powers>,
+}
+
+/// Lags `|t_l| = m_l delta` (whole `m_l`, the largest at most [`Powers::MAX_STEPS`] times the
+/// number of lags). Without drift every factor of a contribution at lag `t` is
+/// `exp(-k^2 |t| a)` for an exponent `a` of the term (the interior sum `Y` plus the end
+/// transfers), so it is `r^(m_l)` with `r = exp(-k^2 delta a)`: one `exp` per term and a
+/// running product over the lags instead of one `exp` (and a complex rotation) per term and
+/// lag. The values differ from the direct ones by rounding (relative `~ m_l` ulps).
+#[derive(Debug, Clone, PartialEq)]
+struct Powers {
+    delta: f64,
+    /// The non-zero lags `(l, m_l)`, by increasing `m_l`.
+    order: Vec<(usize, u64)>,
+}
+
+impl Powers {
+    /// Steps of the running product allowed per lag (beyond, the lags are not regular enough
+    /// for powers to pay).
+    const MAX_STEPS: u64 = 4;
+
+    /// The powers of `lags` when they are whole multiples of their smallest non-zero magnitude.
+    fn of(lags: &[f64]) -> Option<Self> {
+        let delta = lags
+            .iter()
+            .map(|t| t.abs())
+            .filter(|t| *t > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        if !delta.is_finite() {
+            return None;
+        }
+        let mut order = Vec::new();
+        for (l, t) in lags.iter().enumerate() {
+            if *t == 0.0 {
+                continue;
+            }
+            let m = (t.abs() / delta).round();
+            if (m * delta - t.abs()).abs() > 1e-12 * t.abs()
+                || m > (Self::MAX_STEPS * lags.len() as u64) as f64
+            {
+                return None;
+            }
+            order.push((l, m as u64));
+        }
+        order.sort_by_key(|&(l, m)| (m, l));
+        Some(Self { delta, order })
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,6 +218,8 @@ struct Scratch<'s, M, P> {
     prod: Vec<Complex64>,
     expo: Vec<f64>,
     buf: Vec<Complex64>,
+    /// Per lag and entry (`[l * E + e]`): the values of the lags taken by [`Powers`].
+    table: Vec<Complex64>,
     /// Per lag: whether every vertex of the path so far lies in the medium at both times
     /// (displaced by `-/+ t U / 2`); a path through a scatterer that is outside the medium at
     /// either time contributes nothing at that lag.
@@ -246,6 +297,43 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             *b = v;
         }
         self.sums[part].push_values(&s.buf, w);
+    }
+
+    /// [`Self::push_lag`] of every non-zero lag at once by [`Powers`] (no drift: one set of
+    /// ends, lag-independent terms): adds `w sum prod exp(-k^2 |t| (y + expo))` to the sum of
+    /// part `2 l + half` of every lag `l`, `y` the interior exponent.
+    fn push_powers(&mut self, half: usize, w: f64, y: f64) {
+        let Some(p) = &self.plan.powers else {
+            return;
+        };
+        let c = self.plan.k * self.plan.k * p.delta;
+        let n = self.plan.combos;
+        let ne = self.plan.local.len();
+        let s = &mut *self.s;
+        s.table.fill(Complex64::ZERO);
+        for e in 0..ne {
+            for i in e * n..(e + 1) * n {
+                let pr = s.prod[i];
+                if pr == Complex64::ZERO {
+                    continue;
+                }
+                let r = (-c * (y + s.expo[i])).exp();
+                let (mut z, mut m) = (1.0, 0);
+                for &(l, ml) in &p.order {
+                    while m < ml {
+                        z *= r;
+                        m += 1;
+                    }
+                    s.table[l * ne + e] += pr * z;
+                }
+            }
+        }
+        let w = Complex64::new(w, 0.0);
+        for &(l, _) in &p.order {
+            if s.inside[l] {
+                self.sums[2 * l + half].push_values(&s.table[l * ne..(l + 1) * ne], w);
+            }
+        }
     }
 
     /// Fills `prod`, `expo` with the single-scattering terms of the ends of lag `l`.
@@ -346,6 +434,18 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             src.connect(x, &mut ends.in1);
             sen.connect(x, &mut ends.out1);
         }
+        if let Some(p) = &self.plan.powers {
+            for l in 0..self.plan.lags.len() {
+                if self.plan.zero[l] {
+                    self.push_static(2 * l, weight);
+                }
+            }
+            if let Some(&(l, _)) = p.order.first() {
+                self.single_terms(l);
+                self.push_powers(0, weight, 0.0);
+            }
+            return;
+        }
         let mut done = usize::MAX;
         for l in 0..self.plan.lags.len() {
             if self.plan.zero[l] {
@@ -428,6 +528,19 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             }
         }
         let weight = coherence_factor(self.coherence) * v.weight;
+        if let Some(p) = &self.plan.powers {
+            for l in 0..self.plan.lags.len() {
+                if self.plan.zero[l] {
+                    self.push_static(2 * l + 1, weight);
+                }
+            }
+            if let Some(&(l, _)) = p.order.first() {
+                self.vertex_terms(l, w_in);
+                let y = self.s.state.y;
+                self.push_powers(1, weight, y);
+            }
+            return;
+        }
         let k = self.plan.k;
         let mut done = usize::MAX;
         for l in 0..self.plan.lags.len() {
@@ -578,6 +691,11 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             Coherence::ForwardOnly => 1,
         },
         k: scene.wavenumber(),
+        powers: if model.has_drift() {
+            None
+        } else {
+            Powers::of(lags)
+        },
     };
     let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
     let parts: Vec<(Layout, usize)> = plan
@@ -605,6 +723,11 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             prod: vec![Complex64::ZERO; e_len * plan.combos],
             expo: vec![0.0; e_len * plan.combos],
             buf: vec![Complex64::ZERO; e_len],
+            table: if plan.powers.is_some() {
+                vec![Complex64::ZERO; e_len * lags.len()]
+            } else {
+                Vec::new()
+            },
             inside: vec![true; lags.len()],
         }
     };
