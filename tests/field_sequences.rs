@@ -155,7 +155,7 @@ const FRAMES: usize = 16;
 
 /// Siegert and contrast share one render: the slab with mean free path 1 (optical depth 2), one
 /// plane wave, four far-field sensors 0.2 to 0.5 rad off axis (independent speckles), forward
-/// paths only; Brownian motion `D = 1e-4`; sequences at the 16 midpoints `(l + 1/2) dt` of an
+/// paths only; Brownian motion `D = 5e-4`; sequences at the 16 midpoints `(l + 1/2) dt` of an
 /// exposure `T = 16 dt`, `dt = 0.0625`; `R = 3000` realizations of `N = 200` sub-paths; and
 /// `render_correlation` of the four pairs at lags `m dt / 2`, `m = 0 .. 32` (200 000 paths).
 struct Dynamic {
@@ -166,7 +166,7 @@ struct Dynamic {
 
 fn dynamic() -> Dynamic {
     let scene = slab(1.0, &[0.0], &[0.2, 0.3, 0.4, 0.5]);
-    let model = brownian(1e-4);
+    let model = brownian(5e-4);
     let dt = 0.0625;
     let times: Vec<f64> = (0..FRAMES).map(|l| (l as f64 + 0.5) * dt).collect();
     let opts = FieldOptions {

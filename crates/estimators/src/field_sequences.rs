@@ -63,7 +63,7 @@ use crate::fields::{FieldOptions, render_frames};
 use crate::{CMatrix, EstimatorError, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_medium::{Dimension, Medium};
+use speckle_medium::{Aabb, Dimension, Medium};
 use speckle_motion::MotionModel;
 use speckle_paths::{PathRng, Vertex};
 use speckle_phase::PhaseFunction;
@@ -172,6 +172,23 @@ fn normal_pair(rng: &mut PathRng) -> (f64, f64) {
     (r * c, r * s)
 }
 
+/// The point `p` just outside the box `b` mirrored into it at the faces it crossed (then
+/// clamped, for displacements larger than the box): scatterers diffuse inside the medium, and
+/// the connections assume their vertex inside it (a leg from a point outside a side face is not
+/// attenuated at all).
+fn reflect(b: &Aabb, p: DVec3) -> DVec3 {
+    let (lo, hi) = (b.min(), b.max());
+    let mut q = p;
+    for a in 0..3 {
+        if q[a] < lo[a] {
+            q[a] = 2.0 * lo[a] - q[a];
+        } else if q[a] > hi[a] {
+            q[a] = 2.0 * hi[a] - q[a];
+        }
+    }
+    q.clamp(lo, hi)
+}
+
 impl Trajectory<'_> {
     /// Starts the path of displacement stream `stream`.
     pub(crate) fn start(&mut self, stream: u64) {
@@ -199,10 +216,15 @@ impl Trajectory<'_> {
         let bounds = medium.bounds();
         for (l, (&t, &s)) in f.times.iter().zip(&f.slot).enumerate() {
             let drift = t * motion.drift;
-            self.here[l] = drift + scale * self.wiener[s];
             if drift != DVec3::ZERO && !bounds.contains(x + drift) {
                 self.alive[l] = false;
             }
+            let delta = drift + scale * self.wiener[s];
+            self.here[l] = if bounds.contains(x + delta) {
+                delta
+            } else {
+                reflect(bounds, x + delta) - x
+            };
         }
     }
 
@@ -354,3 +376,4 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
         paths_per_realization: f.paths_per_realization,
     })
 }
+
