@@ -51,11 +51,18 @@
 //!   terms of first order in the displacement over the scale on which the path density varies
 //!   (attenuation lengths, distances to the faces), which is the accuracy of either;
 //! - the sampler displaces the end legs exactly, so their attenuation changes with the
-//!   displacement too (a relative correction of order `sigma_t / k` to the end exponents).
+//!   displacement too: the mean intensity of a frame at time `t` exceeds the static one by
+//!   about `exp(2 sigma_t^2 D t) - 1` (the convexity of the attenuation; `(sigma_t / k)^2` of
+//!   the decorrelation exponent: 0.2% at `k^2 D t = 1` for `sigma_t / k = 0.03`).
+//!
+//! A scatterer displaced out of the medium's box is mirrored back into it at the face it
+//! crossed (scatterers diffuse inside the medium; the connections assume their vertex inside,
+//! and a far-field leg from a point beyond a side face would not be attenuated at all). Like
+//! `render_correlation`, which ignores the faces for Brownian motion, this is exact only away
+//! from the faces by more than `sqrt(2 D t)`.
 //!
 //! A scatterer whose drift takes it out of the medium's box by time `t` (`x + t U` outside)
-//! contributes nothing to the fields at `t` (as in `render_correlation`; Brownian displacements
-//! are not tested against the box). Like the static sampler the sequences have the right
+//! contributes nothing to the fields at `t` (as in `render_correlation`). Like the static sampler the sequences have the right
 //! second-order statistics and tend to circular complex Gaussians as `N` grows, but carry no
 //! higher-order correlations of real speckle.
 
@@ -376,4 +383,3 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
         paths_per_realization: f.paths_per_realization,
     })
 }
-

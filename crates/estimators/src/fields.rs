@@ -195,7 +195,15 @@ pub fn render_fields_shard<M: Medium, P: PhaseFunction>(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<FieldShard, EstimatorError> {
-    render_rows(scene, options, progress, FIELD_TILE, None, Some(shard), None)
+    render_rows(
+        scene,
+        options,
+        progress,
+        FIELD_TILE,
+        None,
+        Some(shard),
+        None,
+    )
 }
 
 /// The fields of every frame of `frames` (see [`crate::render_field_sequence`]): realizations
@@ -412,24 +420,24 @@ fn render_rows<M: Medium, P: PhaseFunction>(
         let r = r - units.start;
         let row = &mut fields.as_mut_slice()[r * nf * j..(r + 1) * nf * j];
         for (row, u) in row.chunks_exact_mut(j.max(1)).zip(&frames_u) {
-        let add = |dst: &mut [Complex64], from: Range<usize>| {
-            for (f, (re, im)) in dst
-                .iter_mut()
-                .zip(u.re[from.clone()].iter().zip(&u.im[from]))
-            {
-                *f += Complex64::new(*re, *im) * scale;
-            }
-        };
-        match &tiles[t] {
-            Tile::Grid { sources, sensors } => {
-                let w = sensors.len();
-                for (l, s) in sources.clone().enumerate() {
-                    let start = s * nv + sensors.start;
-                    add(&mut row[start..start + w], l * w..(l + 1) * w);
+            let add = |dst: &mut [Complex64], from: Range<usize>| {
+                for (f, (re, im)) in dst
+                    .iter_mut()
+                    .zip(u.re[from.clone()].iter().zip(&u.im[from]))
+                {
+                    *f += Complex64::new(*re, *im) * scale;
                 }
+            };
+            match &tiles[t] {
+                Tile::Grid { sources, sensors } => {
+                    let w = sensors.len();
+                    for (l, s) in sources.clone().enumerate() {
+                        let start = s * nv + sensors.start;
+                        add(&mut row[start..start + w], l * w..(l + 1) * w);
+                    }
+                }
+                Tile::List { pairs } => add(&mut row[pairs.clone()], 0..pairs.len()),
             }
-            Tile::List { pairs } => add(&mut row[pairs.clone()], 0..pairs.len()),
-        }
         }
     });
     if !done {
