@@ -499,6 +499,8 @@ fn bad_sequence_inputs_name_the_field() {
     assert!(err(&[0.0, f64::NAN], &model, &opts).starts_with("times[1]:"));
     assert!(err(&[0.0, -1.0], &model, &opts).starts_with("times[1]:"));
     assert!(err(&[f64::INFINITY], &model, &opts).starts_with("times[0]:"));
+    let many = vec![0.0; 5000];
+    assert!(err(&many, &model, &opts).starts_with("times:"));
     // 2^40 realizations of 2 times: refused before any allocation.
     let huge = FieldOptions {
         realizations: 1 << 40,

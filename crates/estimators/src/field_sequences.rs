@@ -87,6 +87,10 @@ pub const DISPLACEMENT_KEY: u64 = 0x4d6f_7469_6f6e; // "Motion"
 /// The most values `R x T x J` a field-sequence render holds (1 GiB of fields).
 pub const MAX_SEQUENCE_VALUES: usize = 1 << 26;
 
+/// The most times of one field-sequence render: every running work item holds one connector
+/// per time.
+pub const MAX_TIMES: usize = 1 << 12;
+
 /// `R` realizations of the fields of every pair of a scene at every time of a list.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FieldSequence {
@@ -288,9 +292,10 @@ impl Trajectory<'_> {
 /// Memory, beyond the scene: the result, `16 (R T + 1) J` bytes, plus per running work item
 /// one connector per time and a tile of `T` frames of at most 512 KiB.
 ///
-/// Errors name the field before anything large is allocated: `times` (empty, or more values
-/// `R T J` than [`MAX_SEQUENCE_VALUES`]), `times[l]` (negative, not finite), `motion.*` (a
-/// model that does not fit the medium), `realizations`, `paths_per_realization`.
+/// Errors name the field before anything large is allocated: `times` (empty, more than
+/// [`MAX_TIMES`], or more values `R T J` than [`MAX_SEQUENCE_VALUES`]), `times[l]` (negative,
+/// not finite), `motion.*` (a model that does not fit the medium), `realizations`,
+/// `paths_per_realization`.
 ///
 /// Deterministic: the same seed gives bitwise the same sequences for any number of threads.
 ///
@@ -321,6 +326,15 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
     let invalid = |field: String, reason: String| EstimatorError::InvalidInput { field, reason };
     if times.is_empty() {
         return Err(invalid("times".into(), "needs at least one time".into()));
+    }
+    if times.len() > MAX_TIMES {
+        return Err(invalid(
+            "times".into(),
+            format!(
+                "{} times exceed the {MAX_TIMES} of one sequence render; render fewer at a time",
+                times.len()
+            ),
+        ));
     }
     if let Some((l, t)) = times
         .iter()

@@ -57,7 +57,7 @@ pub use covariance::{
     render_intensity_with, render_single_scattering,
 };
 pub use field_sequences::{
-    DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, render_field_sequence,
+    DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };
 pub use fields::{FieldEstimate, FieldOptions, FieldShard, render_fields, render_fields_shard};
 // The types every caller of the estimators handles, defined in the crates below.
