@@ -116,7 +116,7 @@ fn compare(seq: &FieldSequence, corr: &CorrelationEstimate, label: &str) {
 /// 0.2 and 0.2125 rad off axis (`J = 4`), forward and reversed paths; Brownian motion with
 /// `D = 2e-5`, times `0, 0.5, 1` (`g1` of a pair drops to about 0.5 at `t = 1`). Sequences:
 /// `R = 12000` realizations of `N = 20` sub-paths, and `R = 3000` of `N = 80`; render 400 000
-/// paths. 78 entries (all pairs at all two times `t_a <= t_b`) in real and imaginary parts each.
+/// paths. 96 entries (all pairs of pairs at all two times `t_a <= t_b`), real and imaginary parts.
 #[test]
 fn empirical_covariance_of_sequences_is_the_spatio_temporal_covariance() {
     let delta = 0.5 * 0.1 / 4.0;
