@@ -3,13 +3,19 @@
 //! of the same pairs (`render_intensity`, the target named by the issue: under 2x per path), for
 //! Brownian motion and for Brownian motion with drift (the drift connects both copies of every
 //! lag at both end vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
+//!
+//! Also field sequences (`render_field_sequence`, Brownian motion) at 8 times against the static
+//! field sampler (`render_fields`) with the same realizations and paths, in path-frames per
+//! second: each frame connects every vertex again, so the named limit is 8 static renders (a
+//! ratio of 1 per frame).
 
 mod common;
 
 use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use speckle::estimators::{
-    Coherence, CovarianceOptions, Entries, NoProgress, render_correlation, render_intensity,
+    Coherence, CovarianceOptions, Entries, FieldOptions, NoProgress, render_correlation,
+    render_field_sequence, render_fields, render_intensity,
 };
 use speckle::medium::DVec3;
 use speckle::motion::{Motion, MotionModel};
@@ -60,5 +66,36 @@ fn temporal(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, temporal);
+fn sequences(c: &mut Criterion) {
+    let times: Vec<f64> = (0..8).map(|l| l as f64 * 0.05).collect();
+    let model = MotionModel::uniform(Motion::brownian(0.01).unwrap());
+    for (n_src, n_sens) in [(1, 1), (2, 16)] {
+        let s = scene(n_src, n_sens);
+        let opts = FieldOptions {
+            realizations: 4,
+            paths_per_realization: 1024,
+            seed: 1,
+            coherence: Coherence::ForwardAndReversed,
+            add_mean: false,
+            ..Default::default()
+        };
+        let paths = 4 * 1024;
+        let id = format!("J={}", s.len());
+        let mut g = c.benchmark_group("estimators/field_sequence/path_frames");
+        g.sample_size(10);
+        g.throughput(Throughput::Elements(paths));
+        g.bench_function(BenchmarkId::new("static_fields", &id), |b| {
+            b.iter(|| black_box(render_fields(&s, &opts, &NoProgress).unwrap()))
+        });
+        g.throughput(Throughput::Elements(paths * times.len() as u64));
+        g.bench_function(BenchmarkId::new("brownian_8_times", &id), |b| {
+            b.iter(|| {
+                black_box(render_field_sequence(&s, &model, &times, &opts, &NoProgress).unwrap())
+            })
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, temporal, sequences);
 criterion_main!(benches);

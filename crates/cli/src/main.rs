@@ -66,6 +66,9 @@ enum Command {
     G1(covariance::Args),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(fields::Args),
+    /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
+    /// scene's `[motion]` lags as frame times (>= 0), whose covariance is that of `speckle g1`.
+    FieldSequence(field_sequence::Args),
     /// Render the single-scattering covariance alone (Eq. 41; no path tracing).
     Single(single::Args),
     /// Compute the speckle mean of every pair (closed form).
@@ -109,6 +112,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Intensity(a) => intensity::run(&a),
         Command::G1(a) => g1::run(&a),
         Command::Fields(a) => fields::run(&a),
+        Command::FieldSequence(a) => field_sequence::run(&a),
         Command::Single(a) => single::run(&a),
         Command::Mean(a) => mean::run(&a),
         Command::Wave(a) => wave::run(&a),

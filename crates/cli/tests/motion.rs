@@ -128,3 +128,90 @@ fn bad_motion_names_the_field() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
 }
+
+/// `speckle field-sequence`: a `(R, T, n_sources, n_sensors)` complex array, its times and a
+/// sidecar; the frame at time 0 is bitwise `speckle fields` of the same scene and seed, later
+/// frames differ; the same output on 1 and 3 threads; a scene without `[motion]` or with a
+/// negative frame time exits with code 2 naming the field, and writes nothing.
+#[test]
+fn field_sequence_starts_at_the_static_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = "\n[motion]\ndiffusion = 0.002\nlags = [0.0, 1.0, 4.0]\n";
+    let render = "realizations = 3\npaths_per_realization = 200\n";
+    let text = format!("{SCENE}{render}{motion}");
+    let scene = write(dir.path(), "m.toml", &text);
+    let s = scene.to_str().unwrap();
+    for (out, threads) in [("a", "1"), ("b", "3")] {
+        let args = [
+            "field-sequence",
+            s,
+            "--out",
+            out,
+            "-q",
+            "--threads",
+            threads,
+        ];
+        let o = speckle(dir.path(), &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let o = speckle(
+        dir.path(),
+        &[
+            "fields",
+            s,
+            "--out",
+            "f",
+            "-q",
+            "--no-png",
+            "--threads",
+            "2",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let seq = npy_f64(&a.join("m.field_sequence.npy"));
+    assert_eq!(seq, npy_f64(&b.join("m.field_sequence.npy")));
+    assert_eq!(npy_f64(&a.join("m.times.npy")), vec![0.0, 1.0, 4.0]);
+    assert!(a.join("m.field_sequence.json").exists() && a.join("m.mean.npy").exists());
+    let fields = npy_f64(&dir.path().join("f").join("m.fields.npy"));
+    // (R, T, 1, 2) complex: realization r, time l, sensor d at 2 ((r T + l) 2 + d).
+    let (nt, j) = (3, 2);
+    for r in 0..3 {
+        for d in 0..j {
+            let at = |l: usize| 2 * ((r * nt + l) * j + d);
+            let f = 2 * (r * j + d);
+            assert_eq!(seq[at(0)].to_bits(), fields[f].to_bits(), "r {r} d {d}");
+            assert_eq!(seq[at(0) + 1].to_bits(), fields[f + 1].to_bits());
+            assert_ne!(seq[at(2)], fields[f]);
+        }
+    }
+    let header = std::fs::read(a.join("m.field_sequence.npy")).unwrap();
+    let header = String::from_utf8_lossy(&header[..100]).to_string();
+    assert!(header.contains("(3, 3, 1, 2)"), "{header}");
+    // Refusals.
+    let bad = write(
+        dir.path(),
+        "bad.toml",
+        &format!("{SCENE}\n[motion]\ndiffusion = 0.002\nlags = [0.0, -1.0]\n"),
+    );
+    let o = speckle(
+        dir.path(),
+        &["field-sequence", bad.to_str().unwrap(), "--out", "x", "-q"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("motion.lags[1]"), "{}", stderr(&o));
+    let still = write(dir.path(), "static.toml", SCENE);
+    let o = speckle(
+        dir.path(),
+        &[
+            "field-sequence",
+            still.to_str().unwrap(),
+            "--out",
+            "x",
+            "-q",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
+    assert!(!dir.path().join("x").join("m.field_sequence.npy").exists());
+}

@@ -1,6 +1,7 @@
 //! Speckle field sampling (Alg. 2, Sec. 5.2).
 
 use crate::connect::{Connector, Cvec, Tile, coherence_factor, tiles};
+use crate::field_sequences::{Frames, Trajectory};
 use crate::{CMatrix, Coherence, EstimatorError, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
@@ -78,9 +79,14 @@ fn paths_per_item(n: u64, tile: &Tile) -> u64 {
     n.div_ceil(n.div_ceil(size))
 }
 
-struct FieldSink<'c, 's, 'p, M, P> {
-    conn: &'c mut Connector<'s, M, P>,
-    u: &'c mut Cvec,
+/// Adds the sub-paths of a realization to its fields: one connector and one field vector per
+/// frame (one for a static render; one per time for a sequence, whose `motion` displaces the
+/// vertices and carries the per-path time factor of each frame).
+struct FieldSink<'c, 's, 'p, 'f, M, P> {
+    scene: &'s Scene<M, P>,
+    conns: &'c mut [Connector<'s, M, P>],
+    u: &'c mut [Cvec],
+    motion: Option<&'c mut Trajectory<'f>>,
     coherence: Coherence,
     factor: f64,
     poll: &'c mut Poll<'p>,
@@ -91,21 +97,49 @@ fn random_phase(rng: &mut PathRng) -> Complex64 {
     Complex64::from_polar(1.0, TAU * rng.next_f64())
 }
 
-impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, '_, M, P> {
+impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, '_, '_, M, P> {
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng) {
         // Single scattering: z sqrt(sigma_s / q_o) F, so that E[u u^H] gains (sigma_s / q_o) F F^H
         // as in Alg. 1. (Alg. 2 prints sqrt(V/2) here, which would halve single scattering.)
         let z = random_phase(rng) * weight.sqrt();
-        self.conn.add_first(x1, ty, z, self.u);
+        match self.motion.as_deref_mut() {
+            None => self.conns[0].add_first(x1, ty, z, &mut self.u[0]),
+            Some(m) => {
+                m.first(self.scene.medium(), x1);
+                for (l, (conn, u)) in self.conns.iter_mut().zip(self.u.iter_mut()).enumerate() {
+                    if m.alive(l) {
+                        conn.add_first(m.position(l, x1), ty, z, u);
+                    }
+                }
+            }
+        }
     }
 
     fn vertex(&mut self, v: &Vertex, rng: &mut PathRng) {
-        if v.index == 2 {
-            self.conn.second(v.w12);
-        }
         let z = random_phase(rng) * (self.factor * v.weight).sqrt();
-        self.conn
-            .add_vertex(v.x, v.w_in, v.ty, self.coherence, z, self.u);
+        match self.motion.as_deref_mut() {
+            None => {
+                let conn = &mut self.conns[0];
+                if v.index == 2 {
+                    conn.second(v.w12);
+                }
+                conn.add_vertex(v.x, v.w_in, v.ty, self.coherence, z, &mut self.u[0]);
+            }
+            Some(m) => {
+                m.vertex(self.scene.medium(), v);
+                for (l, (conn, u)) in self.conns.iter_mut().zip(self.u.iter_mut()).enumerate() {
+                    if !m.alive(l) {
+                        continue;
+                    }
+                    // The scattering amplitudes keep the undisplaced directions.
+                    if v.index == 2 {
+                        conn.second(v.w12);
+                    }
+                    let x = m.position(l, v.x);
+                    conn.add_vertex(x, v.w_in, v.ty, self.coherence, m.weighted(l, z), u);
+                }
+            }
+        }
     }
 
     #[inline]
@@ -161,7 +195,26 @@ pub fn render_fields_shard<M: Medium, P: PhaseFunction>(
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<FieldShard, EstimatorError> {
-    render_rows(scene, options, progress, FIELD_TILE, None, Some(shard))
+    render_rows(
+        scene,
+        options,
+        progress,
+        FIELD_TILE,
+        None,
+        Some(shard),
+        None,
+    )
+}
+
+/// The fields of every frame of `frames` (see [`crate::render_field_sequence`]): realizations
+/// of `T J` values, frame after frame, the mean added to every frame.
+pub(crate) fn render_frames<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &FieldOptions,
+    frames: &Frames,
+    progress: &dyn Progress,
+) -> Result<FieldEstimate, EstimatorError> {
+    render_with(scene, options, progress, FIELD_TILE, None, Some(frames))
 }
 
 /// One shard of a field render: its realizations (rows) without the mean, and the mean of its
@@ -216,7 +269,8 @@ impl FieldShard {
     }
 }
 
-/// Adds `mean` to every row of `fields` (as the single run does, after its paths).
+/// Adds `mean` to every row of `fields` (as the single run does, after its paths), or to every
+/// frame of `J` values of every row.
 fn add_to_rows(fields: &mut CMatrix, mean: &[Complex64]) {
     let j = mean.len();
     for row in fields.as_mut_slice().chunks_exact_mut(j.max(1)) {
@@ -235,7 +289,19 @@ fn render<M: Medium, P: PhaseFunction>(
     max_tile: usize,
     batch: Option<u64>,
 ) -> Result<FieldEstimate, EstimatorError> {
-    let s = render_rows(scene, options, progress, max_tile, batch, None)?;
+    render_with(scene, options, progress, max_tile, batch, None)
+}
+
+/// [`render`] of the frames of `frames` (one static frame when `None`).
+fn render_with<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &FieldOptions,
+    progress: &dyn Progress,
+    max_tile: usize,
+    batch: Option<u64>,
+    frames: Option<&Frames>,
+) -> Result<FieldEstimate, EstimatorError> {
+    let s = render_rows(scene, options, progress, max_tile, batch, None, frames)?;
     let mut fields = s.rows.rows;
     let mean = if options.add_mean {
         add_to_rows(&mut fields, &s.mean.values);
@@ -252,6 +318,12 @@ fn render<M: Medium, P: PhaseFunction>(
 
 /// [`render`] of the realizations of `shard` (all of them when `None`), without the mean, and
 /// with `add_mean` the means of the shard's share of the pairs (all of them when `None`).
+///
+/// With `frames`, a row holds `T` frames of `J` fields (a field sequence, unsharded): each work
+/// item connects its paths to a tile of at most `max_tile / T` pairs at every time, with the
+/// same batches of paths as the static render, so that a frame at time 0 is bitwise the static
+/// fields.
+#[allow(clippy::too_many_arguments)]
 fn render_rows<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     options: &FieldOptions,
@@ -259,6 +331,7 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     max_tile: usize,
     batch: Option<u64>,
     shard: Option<Shard>,
+    frames: Option<&Frames>,
 ) -> Result<FieldShard, EstimatorError> {
     speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
     if options.realizations == 0 {
@@ -287,9 +360,14 @@ fn render_rows<M: Medium, P: PhaseFunction>(
         },
         pairs: if options.add_mean { share } else { 0..0 },
     };
-    let tiles = tiles(scene, max_tile);
+    let nf = frames.map_or(1, Frames::len);
+    // The batches of the static render (whose tiles are `max_tile` pairs), whatever the frames.
+    let per = Batches::of_size(
+        n,
+        batch.unwrap_or_else(|| paths_per_item(n, &tiles(scene, max_tile)[0])),
+    );
+    let tiles = tiles(scene, (max_tile / nf).max(1));
     let nt = tiles.len();
-    let per = Batches::of_size(n, batch.unwrap_or_else(|| paths_per_item(n, &tiles[0])));
     let whole = Shard::new(0, 1)?;
     let shard = shard.unwrap_or(whole);
     let units = shard.units(options.realizations);
@@ -303,8 +381,11 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     };
     let work = |item: usize| {
         let (r, b, t) = split(item);
-        let mut conn = Connector::for_tile(scene, &tiles[t]);
-        let mut u = Cvec::zeros(tiles[t].len());
+        let mut conns: Vec<_> = (0..nf)
+            .map(|_| Connector::for_tile(scene, &tiles[t]))
+            .collect();
+        let mut u = vec![Cvec::zeros(tiles[t].len()); nf];
+        let mut trajectory = frames.map(Frames::trajectory);
         let range = per.range(b);
         // Progress counts a realization's paths once, with its last tile.
         let counted: &dyn Progress = if t + 1 == nt {
@@ -313,43 +394,50 @@ fn render_rows<M: Medium, P: PhaseFunction>(
             &Silent(progress)
         };
         for_each_path(range, counted, |path, poll| {
+            let stream = r as u64 * n + path;
+            if let Some(m) = trajectory.as_mut() {
+                m.start(stream);
+            }
             let mut sink = FieldSink {
-                conn: &mut conn,
+                scene,
+                conns: &mut conns,
                 u: &mut u,
+                motion: trajectory.as_mut(),
                 coherence: options.coherence,
                 factor: coherence_factor(options.coherence),
                 poll,
             };
-            let stream = r as u64 * n + path;
             tracer.trace(&mut PathRng::new(options.seed, stream), &mut sink);
         })?;
         Some(u)
     };
-    let mut fields = CMatrix::zeros(units.len(), j);
+    let mut fields = CMatrix::zeros(units.len(), nf * j);
     let scale = 1.0 / (n as f64).sqrt();
-    let bytes = tiles.iter().map(Tile::len).max().unwrap_or(0) * 16;
+    let bytes = tiles.iter().map(Tile::len).max().unwrap_or(0) * 16 * nf;
     let nv = scene.sensors().len();
-    let done = run_ordered_range(items, bytes, work, |item, u| {
+    let done = run_ordered_range(items, bytes, work, |item, frames_u| {
         let (r, _, t) = split(item);
         let r = r - units.start;
-        let row = &mut fields.as_mut_slice()[r * j..(r + 1) * j];
-        let add = |dst: &mut [Complex64], from: Range<usize>| {
-            for (f, (re, im)) in dst
-                .iter_mut()
-                .zip(u.re[from.clone()].iter().zip(&u.im[from]))
-            {
-                *f += Complex64::new(*re, *im) * scale;
-            }
-        };
-        match &tiles[t] {
-            Tile::Grid { sources, sensors } => {
-                let w = sensors.len();
-                for (l, s) in sources.clone().enumerate() {
-                    let start = s * nv + sensors.start;
-                    add(&mut row[start..start + w], l * w..(l + 1) * w);
+        let row = &mut fields.as_mut_slice()[r * nf * j..(r + 1) * nf * j];
+        for (row, u) in row.chunks_exact_mut(j.max(1)).zip(&frames_u) {
+            let add = |dst: &mut [Complex64], from: Range<usize>| {
+                for (f, (re, im)) in dst
+                    .iter_mut()
+                    .zip(u.re[from.clone()].iter().zip(&u.im[from]))
+                {
+                    *f += Complex64::new(*re, *im) * scale;
                 }
+            };
+            match &tiles[t] {
+                Tile::Grid { sources, sensors } => {
+                    let w = sensors.len();
+                    for (l, s) in sources.clone().enumerate() {
+                        let start = s * nv + sensors.start;
+                        add(&mut row[start..start + w], l * w..(l + 1) * w);
+                    }
+                }
+                Tile::List { pairs } => add(&mut row[pairs.clone()], 0..pairs.len()),
             }
-            Tile::List { pairs } => add(&mut row[pairs.clone()], 0..pairs.len()),
         }
     });
     if !done {

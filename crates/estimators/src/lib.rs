@@ -17,6 +17,8 @@
 //! - [`render_fields`]: realizations of the field vector (Alg. 2) whose covariance is the above.
 //! - [`render_correlation`]: the spatio-temporal covariance `C[j, k](t)` of moving scatterers
 //!   (Bar et al. 2023) at a list of time lags, every lag from the same paths.
+//! - [`render_field_sequence`]: realizations of the fields at a list of times (Sec. 5 of the
+//!   2023 paper) whose spatio-temporal covariance is the above.
 //!
 //! Design decision: every estimator is built on one per-vertex connection routine
 //! ([`Scene`]'s sources and sensors connected to `x1` and `x_b`), and one deterministic batch
@@ -45,6 +47,7 @@
 mod connect;
 mod correlation;
 mod covariance;
+mod field_sequences;
 mod fields;
 
 pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_correlation};
@@ -52,6 +55,9 @@ pub use covariance::{
     CovarianceEstimate, CovarianceMerge, CovarianceOptions, CovarianceShard, render_covariance,
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,
     render_intensity_with, render_single_scattering,
+};
+pub use field_sequences::{
+    DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };
 pub use fields::{FieldEstimate, FieldOptions, FieldShard, render_fields, render_fields_shard};
 // The types every caller of the estimators handles, defined in the crates below.

@@ -8,6 +8,7 @@
 //! |---|---|---|
 //! | covariance, intensity, single scattering | `seed` | global path index `n` |
 //! | fields | `seed` | `r N + n` for path `n` of realization `r` (`N` paths each) |
+//! | field sequences (scatterer displacements; paths and phases as fields) | [`derive_seed`]`(seed, 0x4d6f74696f6e)` | `r N + n` |
 //! | wave solver | `seed` | configuration index `r` |
 //! | a sub-render `g` of a study (e.g. group `g` of a wavelength sweep) | [`derive_seed`]`(seed, g)` | as its estimator |
 //!

@@ -5,6 +5,7 @@ pub mod check;
 pub mod covariance;
 pub mod demo;
 pub mod example;
+pub mod field_sequence;
 pub mod fields;
 pub mod fit_phase;
 pub mod g1;

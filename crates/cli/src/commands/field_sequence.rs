@@ -1,0 +1,144 @@
+//! `speckle field-sequence`: field realizations of moving scatterers at the times of `[motion]`
+//! (Bar et al. 2023, Sec. 5): spatio-temporal transmission matrices (or speckle image sequences)
+//! whose covariance is the spatio-temporal covariance of `speckle g1`.
+
+use super::*;
+use crate::error;
+use speckle::estimators::render_field_sequence;
+use speckle::scene::SceneError;
+use speckle::scene::npy::{encode_c16, encode_f8};
+
+/// Arguments of `field-sequence`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    common: Common,
+    /// Number of realizations (replaces `render.realizations`).
+    #[arg(long, value_name = "R")]
+    realizations: Option<usize>,
+    /// Sub-paths per realization (replaces `render.paths_per_realization`).
+    #[arg(long, value_name = "N")]
+    paths_per_realization: Option<u64>,
+    /// Forward paths only (`render.coherence = "forward_only"`).
+    #[arg(long)]
+    forward_only: bool,
+    /// Do not add the speckle mean (`render.add_mean = false`).
+    #[arg(long)]
+    no_mean: bool,
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let (p, run) = a.common.load(Overrides {
+        realizations: a.realizations,
+        paths_per_realization: a.paths_per_realization,
+        forward_only: a.forward_only,
+        no_mean: a.no_mean,
+        ..Overrides::default()
+    })?;
+    let refuse = |field: &str, reason: String| {
+        p.in_document(SceneError::InvalidInput {
+            field: field.into(),
+            reason,
+        })
+    };
+    let Some(motion) = p.motion.clone() else {
+        return Err(refuse(
+            "motion",
+            "`speckle field-sequence` needs a [motion] table (diffusion, drift, and the frame \
+             times as lags)"
+                .into(),
+        )
+        .into());
+    };
+    if run.shard.is_some() {
+        return Err(refuse(
+            "shard",
+            "`speckle field-sequence` renders whole runs only (no --shard)".into(),
+        )
+        .into());
+    }
+    if let Some((l, t)) = motion.lags.iter().enumerate().find(|(_, t)| **t < 0.0) {
+        return Err(refuse(
+            &format!("motion.lags[{l}]"),
+            format!("the frame times of a field sequence must be >= 0 (got {t})"),
+        )
+        .into());
+    }
+    let (r, nt) = (p.render.realizations, motion.lags.len());
+    p.field_rows_size(r.saturating_mul(nt), "render.realizations")
+        .map_err(in_scene(&p))?;
+    let staged = plan(&p, estimate(&p, Command::Fields), run)?;
+    let opts = speckle::runs::field_options(&p);
+    let total = (r as u64).saturating_mul(opts.paths_per_realization);
+    let (est, wall) = run.timed(&p, total, "paths", error::estimator, |pr| {
+        render_field_sequence(&p.scene, &motion.model, &motion.lags, &opts, pr)
+    })?;
+    write(&p, staged, &est, &motion.lags, wall)
+}
+
+fn write(
+    p: &Problem,
+    mut staged: Staged,
+    est: &speckle::estimators::FieldSequence,
+    times: &[f64],
+    wall: f64,
+) -> anyhow::Result<()> {
+    let rd = &p.render;
+    let (j, rr, nt) = (p.pairs(), rd.realizations, times.len());
+    let n = &p.name;
+    let shape = [vec![rr, nt], p.pair_shape()].concat();
+    let layout = if p.all_pairs {
+        "complex128 (R, T, n_sources, n_sensors): [r, l, s, d] = realization r at time \
+         motion.lags[l] of pair (source s, sensor d); for a sensor grid, reshape the last axis \
+         to (ny, nx)"
+    } else {
+        "complex128 (R, T, J): [r, l, j] = realization r at time motion.lags[l] of pairs[j]"
+    };
+    let mut files = json!({
+        "field_sequence": format!("{n}.field_sequence.npy"),
+        "times": format!("{n}.times.npy"),
+        "shape": shape,
+        "layout": layout,
+        "content": "field sequences of moving scatterers (Bar et al. 2023, Sec. 5): \
+                    E[(u_j(t_a) - m_j) conj(u_k(t_b) - m_k)] = C[j, k](t_b - t_a) of `speckle \
+                    g1`; frame 0 at time 0 is bitwise `speckle fields` with the same settings",
+    });
+    staged.add(
+        format!("{n}.field_sequence.npy"),
+        encode_c16(&shape, est.fields.as_slice()),
+    );
+    staged.add(format!("{n}.times.npy"), encode_f8(&[nt], times));
+    if rd.add_mean {
+        staged.add(format!("{n}.mean.npy"), encode_c16(&[j], &est.mean));
+        files["mean"] = json!(format!("{n}.mean.npy"));
+    }
+    // The mean intensity of every frame, over realizations and pairs.
+    let frame_intensity: Vec<f64> = (0..nt)
+        .map(|l| {
+            let s: f64 = (0..rr)
+                .flat_map(|q| est.frame(q, l).iter().map(|u| u.norm_sqr()))
+                .sum();
+            s / (rr * j).max(1) as f64
+        })
+        .collect();
+    let render = json!({
+        "realizations": rr,
+        "paths_per_realization": rd.paths_per_realization,
+        "seed": rd.seed,
+        "coherence": speckle::scene::build::render::coherence_name(rd.coherence),
+        "add_mean": rd.add_mean,
+        "threads": threads(),
+        "tracer": rd.tracer_json(),
+        "wall_time_s": wall,
+    });
+    let summary = json!({ "frame_mean_intensity": frame_intensity });
+    let meta = p.sidecar("field_sequence", render, files, summary);
+    stage_sidecar(&mut staged, p, "field_sequence", &meta)?;
+    say!(
+        "{n}: {rr} field sequences of {nt} times of J = {j} pairs ({} paths each) in {wall:.2} \
+         s ({} threads)",
+        rd.paths_per_realization,
+        threads(),
+    );
+    finish(staged)
+}
