@@ -252,12 +252,9 @@ pub(crate) mod near {
         if three {
             beam.weighted(k, x, tau)
         } else {
-            let c = beam.circle_aperture().weighted(
-                k,
-                beam.focus.truncate(),
-                x.truncate(),
-                tau,
-            );
+            let c = beam
+                .circle_aperture()
+                .weighted(k, beam.focus.truncate(), x.truncate(), tau);
             ComplexVmf::new(c.log_scale, [c.mu[0], c.mu[1], Complex64::new(0.0, 0.0)])
         }
     }

@@ -662,4 +662,123 @@ mod tests {
         let mut legs = a.legs();
         b.connect(DVec3::ZERO, &mut legs);
     }
+
+    /// Gaussian connections in the narrow-aperture limit (`gamma = 1e7`): a beam is the plane
+    /// wave along its axis times the focal phase `e^(-i k a . f)`, a Gaussian sensor the
+    /// far-field sensor along its viewing axis times `e^(i k a_v . v)`; so `scatter` and
+    /// `single` equal the plane-wave and far-field values times those phases, with the
+    /// attenuation along the axis, for an isotropic and a lobed amplitude, in 3D and flatland
+    /// (error of order `k^2 |x - f|^2 / gamma`); and the media without box kernels agree.
+    #[test]
+    fn narrow_gaussian_connections_are_plane_waves_times_focal_phases() {
+        use crate::GaussianBeam;
+        use speckle_phase::{Phase, PhaseFunction};
+        let k = 5.0;
+        let lobed =
+            speckle_vmf::VmfMixture::new(vec![(0.0, 0.3), (6.0, 1.0), (-1.5, 0.2)]).unwrap();
+        let b3 = Aabb::new(DVec3::new(-2.0, -1.5, -1.0), DVec3::new(2.0, 1.0, 1.5)).unwrap();
+        let b2 = Aabb::flat(glam::DVec2::new(-2.0, -1.0), glam::DVec2::new(2.0, 1.5)).unwrap();
+        let cases = [
+            (
+                b3,
+                false,
+                Phase::Isotropic,
+                DVec3::new(0.3, -0.2, 0.9).normalize(),
+            ),
+            (
+                b3,
+                false,
+                Phase::Vmf(std::sync::Arc::new(lobed)),
+                DVec3::new(-0.1, 0.4, 0.9).normalize(),
+            ),
+            (b2, true, Phase::FlatIsotropic, DVec3::new(0.6, 0.8, 0.0)),
+        ];
+        let mut next = uniform(3);
+        for (b, flat, phase, a) in cases {
+            let m = HomogeneousBox::new(b, 0.6, 0.1).unwrap();
+            let f = if flat {
+                DVec3::new(0.2, -0.3, 0.0)
+            } else {
+                DVec3::new(0.2, -0.3, 0.4)
+            };
+            let a_v = if flat {
+                DVec3::new(-0.28, 0.96, 0.0)
+            } else {
+                DVec3::new(0.5, 0.1, 0.86).normalize()
+            };
+            let q = if flat {
+                DVec3::new(-0.4, 0.5, 0.0)
+            } else {
+                DVec3::new(-0.4, 0.5, 0.1)
+            };
+            let g = 1e7;
+            let src = [
+                Source::GaussianBeam(GaussianBeam::new("s", f, a, g).unwrap()),
+                Source::plane_wave(a).unwrap(),
+            ];
+            let sen = [
+                Sensor::GaussianBeam(GaussianBeam::new("v", q, a_v, g).unwrap()),
+                Sensor::far_field(a_v).unwrap(),
+            ];
+            let (es, ev) = (
+                Endpoints::sources(&m, k, &src),
+                Endpoints::sensors(&m, k, &sen),
+            );
+            let (mut ls, mut lv) = (es.legs(), ev.legs());
+            let focal_s = Complex64::from_polar(1.0, -k * a.dot(f));
+            let focal_v = Complex64::from_polar(1.0, k * a_v.dot(q));
+            let mut worst = 0.0f64;
+            for _ in 0..50 {
+                let x = m.bounds().lerp([next(), next(), next()]);
+                let w = unit_vector(&mut next, flat);
+                es.connect(x, &mut ls);
+                ev.connect(x, &mut lv);
+                let (mut r, mut i) = ([0.0; 2], [0.0; 2]);
+                es.scatter(&ls, &phase, |d| (d, w), &mut r, &mut i);
+                let got = Complex64::new(r[0], i[0]);
+                let want = Complex64::new(r[1], i[1]) * focal_s;
+                worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                ev.scatter(&lv, &phase, |d| (w, d), &mut r, &mut i);
+                let got = Complex64::new(r[0], i[0]);
+                let want = Complex64::new(r[1], i[1]) * focal_v;
+                worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                let plain = es.single(&ls, 1, &ev, &lv, 1, &phase);
+                for (s, v, phase_factor) in
+                    [(0, 0, focal_s * focal_v), (0, 1, focal_s), (1, 0, focal_v)]
+                {
+                    let got = es.single(&ls, s, &ev, &lv, v, &phase);
+                    let want = plain * phase_factor;
+                    worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                }
+            }
+            eprintln!(
+                "flat {flat}, g = {:.2}: worst relative deviation {worst:.2e}",
+                phase.mean_cosine()
+            );
+            assert!(worst < 1e-4, "{worst:e}");
+            // A grid of one material in 3D takes the medium's own optical depths (scalar route).
+            if !flat {
+                use speckle_medium::Material;
+                let grid = VoxelGrid::from_materials(
+                    b,
+                    [2, 1, 1],
+                    vec![0, 1],
+                    vec![Material::single(0.6, 0.1), Material::single(1.0, 0.4)],
+                )
+                .unwrap();
+                assert!(BoxMedium::of(&grid).is_none());
+                let es = Endpoints::sources(&grid, k, &src);
+                let mut ls = es.legs();
+                let x = DVec3::new(0.5, 0.2, 0.3);
+                es.connect(x, &mut ls);
+                let (mut r, mut i) = ([0.0; 2], [0.0; 2]);
+                es.scatter(&ls, &phase, |d| (d, a), &mut r, &mut i);
+                let (got, want) = (
+                    Complex64::new(r[0], i[0]),
+                    Complex64::new(r[1], i[1]) * focal_s,
+                );
+                assert!((got - want).norm() < 1e-4 * want.norm(), "{got} {want}");
+            }
+        }
+    }
 }
