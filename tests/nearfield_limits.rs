@@ -143,6 +143,27 @@ fn narrow_apertures_tend_to_far_field_times_focal_phases() {
             .map(|&(_, a)| Sensor::far_field(a).unwrap())
             .collect(),
     );
+    // Speed (printed, not asserted): the same paths with Gaussian endpoints.
+    let t0 = std::time::Instant::now();
+    let _ = render(
+        e.sources
+            .iter()
+            .map(|&(_, a)| Source::plane_wave(a).unwrap())
+            .collect(),
+        e.sensors
+            .iter()
+            .map(|&(_, a)| Sensor::far_field(a).unwrap())
+            .collect(),
+    );
+    let t_far = t0.elapsed();
+    let t0 = std::time::Instant::now();
+    let _ = deviation(16.0, true, &far);
+    let t_near = t0.elapsed();
+    println!(
+        "time per render: far field {t_far:.2?}, near field (gamma 16, 3 lobes) {t_near:.2?} \
+         ({:.1}x)",
+        t_near.as_secs_f64() / t_far.as_secs_f64()
+    );
     let mut last = f64::INFINITY;
     for gamma in [1e4, 1e5, 1e6, 1e7] {
         let both = deviation(gamma, true, &far);

@@ -3,7 +3,7 @@
 //! Foldy-Lax, the same Gaussian beams as exact plane-wave superpositions) on the same scenes, in
 //! absolute units, entry by entry.
 //!
-//! Scene (flatland): a box of isotropic lossless scatterers, wavelength 1, two Gaussian sources
+//! Scenes (flatland 40 x 20 and 3D 8 x 8 x 8, optical depth 1 along the axis): a box of isotropic lossless scatterers, wavelength 1, two Gaussian sources
 //! focused inside the box on the same depth plane, `delta` apart laterally, propagating along
 //! the depth axis; Gaussian sensors in transmission focused at the sources' foci shifted by `tau`
 //! (the memory-effect geometry of Sec. 8, Eq. 48: `v = i + tau`, looking along the depth axis),
@@ -20,6 +20,13 @@
 //! `sigma_t d / (2 gamma)` in intensity, which the concentration `gamma = 50` and optical
 //! depth 1 keep at 1%, below the standard errors here. The reflection sensor also checks that
 //! the wave solution's coherent backscattering exceeds the forward-only Monte Carlo.
+//!
+//! Measured (seeds as below): flatland, largest deviations 1.69 (intensity) and 1.46 (memory
+//! effect) combined SE, backscattering peak z 6.4 over forward-only; 3D, 1.87 and 2.55 (the
+//! imaginary part of the wave solution's covariances, about +0.0004 on entries of 0.06, where
+//! the Monte Carlo's is 0: in 3D the wave intensities also run 2-5% below the Monte Carlo, the
+//! dependent scattering of these dense small boxes that `wave_validation.rs` documents), peak
+//! z 6.2. About 27 s each in the ci profile.
 
 use speckle::endpoints::GaussianBeam;
 use speckle::estimators::{
@@ -216,10 +223,9 @@ fn flatland_gaussian_beams_match_the_wave_solver() {
 }
 
 #[test]
-#[ignore]
-fn heavy_three_d_gaussian_beams_match_the_wave_solver() {
+fn three_d_gaussian_beams_match_the_wave_solver() {
     run(&Case {
-        name: "3D 8x8x8, mfp 8 (OD 1), gamma 50, heavy",
+        name: "3D 8x8x8, mfp 8 (OD 1), gamma 50",
         dimension: Dimension::Three,
         size: (8.0, 8.0),
         mean_free_path: 8.0,
