@@ -814,7 +814,8 @@ mod tests {
         }
     }
 
-    /// The Monte Carlo estimators and the mean field refuse Gaussian beams, naming the entry.
+    /// The field, mean-field and correlation estimators refuse Gaussian beams, naming the entry;
+    /// the covariance estimators refuse them only with amplitudes that are not vMF mixtures.
     #[test]
     fn monte_carlo_and_mean_refuse_gaussian_beams() {
         use crate::{Sensor, Source, check_monte_carlo, mean_field};
@@ -844,6 +845,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("render.add_mean:"), "{e}");
+        // The covariance estimators accept them with vMF-lobed amplitudes only.
+        use crate::check_near_field;
+        use speckle_phase::Phase;
+        assert!(check_near_field(&sources, &sensors, &phases).is_ok());
+        let hg = [Phase::Isotropic, Phase::hg(0.5).unwrap()];
+        let e = check_near_field(&sources, &sensors, &hg)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("sources[1]: ") && e.contains("phase 1"),
+            "{e}"
+        );
+        let e = check_near_field(&sources[..1], &[Sensor::GaussianBeam(b)], &hg)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("sensors[0]: "), "{e}");
+        assert!(check_near_field(&sources[..1], &sensors, &hg).is_ok());
     }
 
     #[test]
