@@ -299,7 +299,8 @@ pub(crate) mod near {
         let shifted = a.mul(&ComplexVmf::real(0.0, gamma, w_o));
         let beta = shifted.beta();
         let size = a.mu.iter().map(|m| m.norm()).sum::<f64>() + gamma.abs();
-        if !(beta.norm() > 1e-8 * size) {
+        let scale = beta.norm();
+        if scale.is_nan() || scale <= 1e-8 * size {
             return None;
         }
         let ratio = gamma / beta;
