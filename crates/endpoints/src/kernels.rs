@@ -2,11 +2,13 @@
 //! vectorised per run of endpoints of one kind, and the scattering connections
 //! `Upsilon(x, w)` the estimators build on them.
 
+use crate::gaussian::near;
 use crate::{Kind, Leg, Sensor, Side, Source, plane, point};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::{Dimension, Medium};
 use speckle_phase::PhaseFunction;
+use speckle_vmf::ComplexVmf;
 
 /// The medium as the fast kernels see it: extinction `sigma_t` inside its bounding box, vacuum
 /// outside.
@@ -94,7 +96,7 @@ impl BoxMedium {
 enum RunKind {
     Plane(plane::Run),
     Point(point::Run),
-    /// Gaussian beams have no leg (see [`crate::check_monte_carlo`]).
+    /// Gaussian beams: no leg, a weighted aperture per medium point ([`Legs`]).
     Gaussian,
 }
 
@@ -178,6 +180,8 @@ pub struct Endpoints<'m, M> {
     three: bool,
     side: Side,
     runs: Vec<Run>,
+    /// Whether any endpoint is a Gaussian beam.
+    gaussian: bool,
     id: u64,
 }
 
@@ -188,6 +192,8 @@ pub struct Legs {
     re: Vec<f64>,
     im: Vec<f64>,
     dir: [Vec<f64>; 3],
+    /// The weighted apertures `a~(w; x)` of the Gaussian endpoints (unused for the others).
+    aperture: Vec<ComplexVmf>,
     owner: u64,
 }
 
@@ -277,6 +283,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         Self {
             medium,
             k,
+            gaussian: ends.iter().any(|e| matches!(e, Kind::Gaussian(_))),
             ends,
             geometry,
             three: medium.dimension() == Dimension::Three,
@@ -302,6 +309,12 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         self.ends.iter().all(|e| matches!(e, Kind::Plane(_)))
     }
 
+    /// Whether any endpoint is a focused Gaussian beam (whose connections integrate over its
+    /// aperture instead of following one leg).
+    pub fn has_gaussian(&self) -> bool {
+        self.gaussian
+    }
+
     /// A buffer for [`Endpoints::connect`] of this set (the constant directions of plane waves
     /// and far-field sensors are filled in here, once).
     pub fn legs(&self) -> Legs {
@@ -310,6 +323,11 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             re: vec![0.0; n],
             im: vec![0.0; n],
             dir: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            aperture: if self.gaussian {
+                vec![ComplexVmf::new(Complex64::new(0.0, 0.0), [Complex64::new(0.0, 0.0); 3]); n]
+            } else {
+                vec![]
+            },
             owner: self.id,
         };
         for (i, e) in self.ends.iter().enumerate() {
@@ -325,7 +343,9 @@ impl<'m, M: Medium> Endpoints<'m, M> {
 
     /// Connects the point `x` to every endpoint: `legs` (made by [`Endpoints::legs`] of this
     /// set) receives `upsilon(i -> x)` for sources, `upsilon(x -> v)` for sensors, and the leg
-    /// directions. Points inside the medium (or on its boundary) take the vectorised kernels; a
+    /// directions; a Gaussian beam receives its weighted aperture at `x` instead (Eqs. 26-27,
+    /// attenuated along its axis, Eq. 25), and its throughput and direction are left at 0.
+    /// Points inside the medium (or on its boundary) take the vectorised kernels; a
     /// point outside it (a vertex displaced by a drift, `speckle-motion`) the medium's own
     /// optical depths.
     ///
@@ -351,7 +371,16 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             let (re, im) = (&mut legs.re[range.clone()], &mut legs.im[range.clone()]);
             let in_range = match &run.kind {
                 RunKind::Plane(f) => f.connect(&g, x, re, im),
-                RunKind::Gaussian => panic!("{}", crate::GAUSSIAN_MONTE_CARLO),
+                RunKind::Gaussian => {
+                    for i in range {
+                        if let Kind::Gaussian(b) = &self.ends[i] {
+                            // tau = sigma_t d / 2 back along the axis: -far_exponent.
+                            let tau = -g.far_exponent(x, -b.axis);
+                            legs.aperture[i] = near::aperture_at(b, self.three, self.k, x, tau);
+                        }
+                    }
+                    true
+                }
                 RunKind::Point(p) => {
                     let [dx, dy, dz] = &mut legs.dir;
                     let dir = [
@@ -380,6 +409,11 @@ impl<'m, M: Medium> Endpoints<'m, M> {
 
     /// Leg `i` at `x` by the scalar (medium-calling) route.
     fn scalar_leg(&self, i: usize, x: DVec3, legs: &mut Legs) {
+        if let Kind::Gaussian(b) = &self.ends[i] {
+            let tau = 0.5 * self.medium.optical_depth_to_infinity(x, -b.axis);
+            legs.aperture[i] = near::aperture_at(b, self.three, self.k, x, tau);
+            return;
+        }
         let leg = self.ends[i].leg(self.medium, self.k, x, self.side);
         legs.re[i] = leg.amp.re;
         legs.im[i] = leg.amp.im;
@@ -394,6 +428,15 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     /// source leg arriving along `d` and leaving along the path direction `w`: `(d, w)`; for a
     /// sensor leg leaving along `d`, reached along the path direction `w`: `(w, d)`). Writes
     /// `out_re`, `out_im` (at least `len()` long).
+    ///
+    /// A Gaussian beam has no leg direction: its connection is the aperture integral
+    /// `Upsilon(x, w)` of Eqs. 15-16 in closed form (exact for the amplitude's vMF lobes,
+    /// [`PhaseFunction::amplitude_lobes`]), with the path direction read from `dirs`: the
+    /// outgoing one for a source, the incoming one for a sensor.
+    ///
+    /// # Panics
+    /// For a Gaussian beam when `phase` has no vMF lobes (the estimators check
+    /// [`crate::check_near_field`] first).
     #[inline]
     pub fn scatter<P: PhaseFunction>(
         &self,
@@ -405,11 +448,81 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     ) {
         let n = legs.len();
         let (re, im) = (&mut out_re[..n], &mut out_im[..n]);
+        if self.gaussian {
+            for i in 0..n {
+                let x = match &self.ends[i] {
+                    Kind::Gaussian(_) => {
+                        let (w_in, w_out) = dirs(DVec3::ZERO);
+                        // Source form: the direction leaving x (a sensor's is minus the arrival).
+                        let w = match self.side {
+                            Side::Source => w_out,
+                            Side::Sensor => -w_in,
+                        };
+                        near::upsilon(&legs.aperture[i], self.three, lobes(phase), w)
+                    }
+                    _ => {
+                        let (w_in, w_out) = dirs(legs.dir(i));
+                        legs.amp(i) * phase.amplitude_between(w_in, w_out)
+                    }
+                };
+                re[i] = x.re;
+                im[i] = x.im;
+            }
+            return;
+        }
         for i in 0..n {
             let (w_in, w_out) = dirs(legs.dir(i));
             let x = legs.amp(i) * phase.amplitude_between(w_in, w_out);
             re[i] = x.re;
             im[i] = x.im;
+        }
+    }
+}
+
+/// The vMF lobes of `phase`, which a Gaussian connection needs.
+fn lobes<P: PhaseFunction>(phase: &P) -> &[(f64, f64)] {
+    phase
+        .amplitude_lobes()
+        .expect("a Gaussian connection needs a phase with vMF lobes (check_near_field)")
+}
+
+impl<M: Medium> Endpoints<'_, M> {
+    /// The single-scattering value at the point `x1` both sets were just
+    /// [`connect`](Endpoints::connect)ed to, for source `s` of this set (its legs `in1`) and
+    /// sensor `v` of `sensors` (legs `out1`): `upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` for
+    /// leg endpoints (Eq. 41's integrand); with a Gaussian beam on one side, its exact
+    /// `Upsilon(x1, w)` towards (from) the other endpoint's leg direction times that leg's
+    /// throughput; with Gaussian beams on both sides, Eq. 18 with the convolution approximation
+    /// of Eqs. 31-32 for non-isotropic lobes (exact for isotropic ones; see
+    /// `gaussian::near::single_both`).
+    ///
+    /// # Panics
+    /// As [`Endpoints::scatter`], for a Gaussian endpoint whose phase has no vMF lobes.
+    pub fn single<P: PhaseFunction>(
+        &self,
+        in1: &Legs,
+        s: usize,
+        sensors: &Endpoints<'_, M>,
+        out1: &Legs,
+        v: usize,
+        phase: &P,
+    ) -> Complex64 {
+        let three = self.three;
+        match (&self.ends[s], &sensors.ends[v]) {
+            (Kind::Gaussian(_), Kind::Gaussian(bv)) => near::single_both(
+                &in1.aperture[s],
+                &out1.aperture[v],
+                three,
+                lobes(phase),
+                -bv.axis,
+            ),
+            (Kind::Gaussian(_), _) => {
+                near::upsilon(&in1.aperture[s], three, lobes(phase), out1.dir(v)) * out1.amp(v)
+            }
+            (_, Kind::Gaussian(_)) => {
+                in1.amp(s) * near::upsilon(&out1.aperture[v], three, lobes(phase), -in1.dir(s))
+            }
+            _ => in1.amp(s) * out1.amp(v) * phase.amplitude_between(in1.dir(s), out1.dir(v)),
         }
     }
 }
@@ -548,5 +661,124 @@ mod tests {
         );
         let mut legs = a.legs();
         b.connect(DVec3::ZERO, &mut legs);
+    }
+
+    /// Gaussian connections in the narrow-aperture limit (`gamma = 1e7`): a beam is the plane
+    /// wave along its axis times the focal phase `e^(-i k a . f)`, a Gaussian sensor the
+    /// far-field sensor along its viewing axis times `e^(i k a_v . v)`; so `scatter` and
+    /// `single` equal the plane-wave and far-field values times those phases, with the
+    /// attenuation along the axis, for an isotropic and a lobed amplitude, in 3D and flatland
+    /// (error of order `k^2 |x - f|^2 / gamma`); and the media without box kernels agree.
+    #[test]
+    fn narrow_gaussian_connections_are_plane_waves_times_focal_phases() {
+        use crate::GaussianBeam;
+        use speckle_phase::{Phase, PhaseFunction};
+        let k = 5.0;
+        let lobed =
+            speckle_vmf::VmfMixture::new(vec![(0.0, 0.3), (6.0, 1.0), (-1.5, 0.2)]).unwrap();
+        let b3 = Aabb::new(DVec3::new(-2.0, -1.5, -1.0), DVec3::new(2.0, 1.0, 1.5)).unwrap();
+        let b2 = Aabb::flat(glam::DVec2::new(-2.0, -1.0), glam::DVec2::new(2.0, 1.5)).unwrap();
+        let cases = [
+            (
+                b3,
+                false,
+                Phase::Isotropic,
+                DVec3::new(0.3, -0.2, 0.9).normalize(),
+            ),
+            (
+                b3,
+                false,
+                Phase::Vmf(std::sync::Arc::new(lobed)),
+                DVec3::new(-0.1, 0.4, 0.9).normalize(),
+            ),
+            (b2, true, Phase::FlatIsotropic, DVec3::new(0.6, 0.8, 0.0)),
+        ];
+        let mut next = uniform(3);
+        for (b, flat, phase, a) in cases {
+            let m = HomogeneousBox::new(b, 0.6, 0.1).unwrap();
+            let f = if flat {
+                DVec3::new(0.2, -0.3, 0.0)
+            } else {
+                DVec3::new(0.2, -0.3, 0.4)
+            };
+            let a_v = if flat {
+                DVec3::new(-0.28, 0.96, 0.0)
+            } else {
+                DVec3::new(0.5, 0.1, 0.86).normalize()
+            };
+            let q = if flat {
+                DVec3::new(-0.4, 0.5, 0.0)
+            } else {
+                DVec3::new(-0.4, 0.5, 0.1)
+            };
+            let g = 1e7;
+            let src = [
+                Source::GaussianBeam(GaussianBeam::new("s", f, a, g).unwrap()),
+                Source::plane_wave(a).unwrap(),
+            ];
+            let sen = [
+                Sensor::GaussianBeam(GaussianBeam::new("v", q, a_v, g).unwrap()),
+                Sensor::far_field(a_v).unwrap(),
+            ];
+            let (es, ev) = (
+                Endpoints::sources(&m, k, &src),
+                Endpoints::sensors(&m, k, &sen),
+            );
+            let (mut ls, mut lv) = (es.legs(), ev.legs());
+            let focal_s = Complex64::from_polar(1.0, -k * a.dot(f));
+            let focal_v = Complex64::from_polar(1.0, k * a_v.dot(q));
+            let mut worst = 0.0f64;
+            for _ in 0..50 {
+                let x = m.bounds().lerp([next(), next(), next()]);
+                let w = unit_vector(&mut next, flat);
+                es.connect(x, &mut ls);
+                ev.connect(x, &mut lv);
+                let (mut r, mut i) = ([0.0; 2], [0.0; 2]);
+                es.scatter(&ls, &phase, |d| (d, w), &mut r, &mut i);
+                let got = Complex64::new(r[0], i[0]);
+                let want = Complex64::new(r[1], i[1]) * focal_s;
+                worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                ev.scatter(&lv, &phase, |d| (w, d), &mut r, &mut i);
+                let got = Complex64::new(r[0], i[0]);
+                let want = Complex64::new(r[1], i[1]) * focal_v;
+                worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                let plain = es.single(&ls, 1, &ev, &lv, 1, &phase);
+                for (s, v, phase_factor) in
+                    [(0, 0, focal_s * focal_v), (0, 1, focal_s), (1, 0, focal_v)]
+                {
+                    let got = es.single(&ls, s, &ev, &lv, v, &phase);
+                    let want = plain * phase_factor;
+                    worst = worst.max((got - want).norm() / want.norm().max(1e-3));
+                }
+            }
+            eprintln!(
+                "flat {flat}, g = {:.2}: worst relative deviation {worst:.2e}",
+                phase.mean_cosine()
+            );
+            assert!(worst < 1e-4, "{worst:e}");
+            // A grid of one material in 3D takes the medium's own optical depths (scalar route).
+            if !flat {
+                use speckle_medium::Material;
+                let grid = VoxelGrid::from_materials(
+                    b,
+                    [2, 1, 1],
+                    vec![0, 1],
+                    vec![Material::single(0.6, 0.1), Material::single(1.0, 0.4)],
+                )
+                .unwrap();
+                assert!(BoxMedium::of(&grid).is_none());
+                let es = Endpoints::sources(&grid, k, &src);
+                let mut ls = es.legs();
+                let x = DVec3::new(0.5, 0.2, 0.3);
+                es.connect(x, &mut ls);
+                let (mut r, mut i) = ([0.0; 2], [0.0; 2]);
+                es.scatter(&ls, &phase, |d| (d, a), &mut r, &mut i);
+                let (got, want) = (
+                    Complex64::new(r[0], i[0]),
+                    Complex64::new(r[1], i[1]) * focal_s,
+                );
+                assert!((got - want).norm() < 1e-4 * want.norm(), "{got} {want}");
+            }
+        }
     }
 }

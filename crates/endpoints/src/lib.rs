@@ -20,8 +20,11 @@
 //! - [`gaussian`](crate::gaussian): the focused Gaussian beam (Bar et al. 2020) as a source and,
 //!   axis reversed, as a sensor: validation, its exact vacuum field, far-field amplitude and
 //!   sensor readings for the wave solver, its weighted aperture and exact `Upsilon` connection.
-//!   The Monte Carlo estimators refuse it for now ([`check_monte_carlo`]): its connection is not
-//!   a leg times an amplitude, and the near-field estimator is not wired in yet.
+//!   Its connection is not a leg times an amplitude: [`Endpoints::connect`] gives it its
+//!   weighted aperture at the medium point, and [`Endpoints::scatter`] and
+//!   [`Endpoints::single`] integrate it in closed form (the near-field covariance of Bar et al.
+//!   2020, Eqs. 13-18). The covariance estimators accept it ([`check_near_field`]); the field,
+//!   mean-field and temporal-correlation estimators refuse it for now ([`check_monte_carlo`]).
 //!
 //! A sensor is written in *source form*, as the source of the field it reads by reciprocity
 //! (the far-field sensor `v` is the plane wave along `-v`; the point sensor at `q` the point
@@ -89,9 +92,9 @@ pub enum Source {
     },
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves
     /// `exp(i k w . (x - f))` weighted by the unit-integral vMF mask about its axis (the
-    /// propagation direction through the focus `f`). The exact wave solver supports it; the
-    /// Monte Carlo estimators refuse it ([`check_monte_carlo`]) until the near-field connections
-    /// are wired in.
+    /// propagation direction through the focus `f`). The exact wave solver and the covariance
+    /// estimators support it ([`check_near_field`]); the other Monte Carlo estimators refuse it
+    /// ([`check_monte_carlo`]).
     GaussianBeam(GaussianBeam),
 }
 
@@ -113,8 +116,9 @@ pub enum Sensor {
     /// A lens of Gaussian (vMF) apodization focused at `focus`, looking along `axis`: the
     /// direction the light travels from the medium into the sensor. It reads
     /// `int m(w) e^(i k w . f) A(w) dw` of a field of outgoing far-field amplitude `A` (Eqs. 9-10);
-    /// its source form is the beam with the axis reversed. Supported by the exact wave solver;
-    /// refused by the Monte Carlo estimators for now ([`check_monte_carlo`]).
+    /// its source form is the beam with the axis reversed. Supported by the exact wave solver and
+    /// the covariance estimators ([`check_near_field`]); refused by the other Monte Carlo
+    /// estimators for now ([`check_monte_carlo`]).
     GaussianBeam(GaussianBeam),
 }
 
@@ -277,14 +281,14 @@ impl Kind {
     }
 }
 
-/// Why the Monte Carlo estimators refuse Gaussian beams (for now).
+/// Why the field, mean-field and temporal-correlation estimators refuse Gaussian beams (for now).
 const GAUSSIAN_MONTE_CARLO: &str = "gaussian_beam endpoints are supported by the exact wave \
-    solver only: the near-field Monte Carlo connections (Bar et al. 2020, Eqs. 13-18) are not \
-    implemented yet";
+    solver and the covariance and intensity estimators only: near-field speckle fields, mean \
+    fields and temporal correlations (Bar et al. 2020, Sec. 7) are not implemented yet";
 
-/// Checks that the Monte Carlo estimators can connect every endpoint: an error naming
-/// `sources[j]` or `sensors[j]` for a Gaussian beam, whose connection `Upsilon(x, w)` integrates
-/// over the aperture and is not wired into the estimators yet (the exact wave solver supports it).
+/// Checks that the field, mean-field and temporal-correlation estimators can connect every
+/// endpoint: an error naming `sources[j]` or `sensors[j]` for a Gaussian beam, which only the
+/// covariance estimators ([`check_near_field`]) and the exact wave solver support.
 pub fn check_monte_carlo(sources: &[Source], sensors: &[Sensor]) -> Result<(), EndpointError> {
     if let Some(j) = sources
         .iter()
@@ -302,6 +306,42 @@ pub fn check_monte_carlo(sources: &[Source], sensors: &[Sensor]) -> Result<(), E
         return Err(check::invalid(
             format!("sensors[{j}]"),
             GAUSSIAN_MONTE_CARLO,
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that the covariance estimators can connect every endpoint with the scattering
+/// amplitudes `phases` (one per particle type): a Gaussian beam's closed-form connections
+/// (Eqs. 15-18) need every amplitude as a mixture of vMF lobes
+/// ([`speckle_phase::PhaseFunction::amplitude_lobes`]: isotropic or `vmf`); otherwise an error
+/// naming the first Gaussian endpoint and the phase. Scenes without Gaussian beams always pass.
+pub fn check_near_field<P: speckle_phase::PhaseFunction>(
+    sources: &[Source],
+    sensors: &[Sensor],
+    phases: &[P],
+) -> Result<(), EndpointError> {
+    let field = if let Some(j) = sources
+        .iter()
+        .position(|s| matches!(s, Source::GaussianBeam(_)))
+    {
+        format!("sources[{j}]")
+    } else if let Some(j) = sensors
+        .iter()
+        .position(|s| matches!(s, Sensor::GaussianBeam(_)))
+    {
+        format!("sensors[{j}]")
+    } else {
+        return Ok(());
+    };
+    if let Some(t) = phases.iter().position(|p| p.amplitude_lobes().is_none()) {
+        return Err(check::invalid(
+            field,
+            format!(
+                "a gaussian_beam connects in closed form only through a scattering amplitude \
+                 that is a mixture of vMF lobes (isotropic or a vmf phase; fit other phases \
+                 with `speckle fit-phase`), and phase {t} is not one"
+            ),
         ));
     }
     Ok(())

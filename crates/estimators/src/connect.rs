@@ -311,6 +311,12 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         let (in1, out1) = (&self.in1, &self.out1);
         let table = self.first_amp.get(self.type1);
         let phase = &self.scene.phases()[self.type1];
+        if self.sources.has_gaussian() || self.sensors.has_gaussian() {
+            // Aperture integrals (Eqs. 15-18): the endpoints' own single-scattering value.
+            let (src, sen) = (&self.sources, &self.sensors);
+            self.for_pairs(|i, s, v| emit(i, z * src.single(in1, s, sen, out1, v, phase)));
+            return;
+        }
         let f = |i: usize, s: usize, v: usize| {
             let amp = match table {
                 Some(t) => t.get(i),

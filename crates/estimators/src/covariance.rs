@@ -334,7 +334,7 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
     progress: &dyn Progress,
 ) -> Result<MomentsRun, EstimatorError> {
     check_paths(options.paths)?;
-    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
+    speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let layout = match (F::Value::REAL, diagonal) {
         (true, false) => Layout::Hermitian,
@@ -378,7 +378,7 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
     progress: &dyn Progress,
 ) -> Result<MatrixEstimate, EstimatorError> {
     check_paths(options.paths)?;
-    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
+    speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
     let init = || Connector::new(scene);
     let path = |conn: &mut Connector<M, P>, n: u64, sums: &mut [BatchSum], _: &mut Poll| {

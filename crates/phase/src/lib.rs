@@ -105,7 +105,21 @@ pub trait PhaseFunction: Send + Sync {
     fn amplitude_between(&self, incoming: DVec3, outgoing: DVec3) -> Complex64 {
         self.amplitude(incoming.dot(outgoing))
     }
+
+    /// The amplitude as an exact mixture of vMF lobes about the incoming direction (Bar et al.
+    /// 2020, Eq. 28), `s(mu) = sum_m e^(l_m + gamma_m mu)` given as the pairs `(gamma_m, l_m)`
+    /// (in flatland `mu` is the cosine of the in-plane angle), when the function has one: the
+    /// near-field connections of focused Gaussian beams integrate it in closed form.
+    /// `None` (the default) for functions that are not such a mixture.
+    fn amplitude_lobes(&self) -> Option<&[(f64, f64)]> {
+        None
+    }
 }
+
+/// The isotropic amplitude `1 / sqrt(4 pi)` as one vMF lobe: `(0, -ln(4 pi) / 2)`.
+const ISOTROPIC_LOBES: [(f64, f64); 1] = [(0.0, -1.265_512_123_484_645_3)];
+/// The flatland isotropic amplitude `1 / sqrt(2 pi)` as one lobe: `(0, -ln(2 pi) / 2)`.
+const FLAT_ISOTROPIC_LOBES: [(f64, f64); 1] = [(0.0, -0.918_938_533_204_672_7)];
 
 /// The unit direction at cosine `mu` from the unit `axis`, at azimuth `2 pi u` about it.
 #[inline]
@@ -133,6 +147,9 @@ impl PhaseFunction for Isotropic {
     }
     fn mean_cosine(&self) -> f64 {
         0.0
+    }
+    fn amplitude_lobes(&self) -> Option<&[(f64, f64)]> {
+        Some(&ISOTROPIC_LOBES)
     }
 }
 
@@ -271,6 +288,14 @@ impl PhaseFunction for Phase {
         match self.dimension() {
             Dimension::Three => self.amplitude(incoming.dot(outgoing)),
             Dimension::Two => self.flat_amplitude_between(incoming, outgoing),
+        }
+    }
+    fn amplitude_lobes(&self) -> Option<&[(f64, f64)]> {
+        match self {
+            Phase::Isotropic => Some(&ISOTROPIC_LOBES),
+            Phase::FlatIsotropic => Some(&FLAT_ISOTROPIC_LOBES),
+            Phase::Vmf(m) => Some(m.amplitude_lobes()),
+            _ => None,
         }
     }
 }
@@ -437,6 +462,27 @@ pub mod testing {
 mod tests {
     use super::testing::*;
     use super::*;
+
+    /// The lobes of the functions that have them sum to the amplitude; the others have none.
+    #[test]
+    fn amplitude_lobes_sum_to_the_amplitude() {
+        let vmf = VmfMixture::new(vec![(0.0, 0.3), (12.0, 1.0), (-2.0, 0.2)]).unwrap();
+        let cases: Vec<Phase> = vec![
+            Phase::Isotropic,
+            Phase::FlatIsotropic,
+            Phase::Vmf(std::sync::Arc::new(vmf)),
+        ];
+        for p in &cases {
+            let lobes = p.amplitude_lobes().unwrap();
+            for mu in [-1.0, -0.3, 0.2, 0.9, 1.0] {
+                let sum: f64 = lobes.iter().map(|(g, l)| (l + g * mu).exp()).sum();
+                let a = p.amplitude(mu).re;
+                assert!((sum - a).abs() < 1e-14 * a, "{p:?} {mu}: {sum} vs {a}");
+            }
+        }
+        assert!(Phase::hg(0.5).unwrap().amplitude_lobes().is_none());
+        assert!(Phase::flat_hg(0.5).unwrap().amplitude_lobes().is_none());
+    }
 
     #[test]
     fn isotropic_is_normalised_and_sampled_exactly() {

@@ -35,6 +35,10 @@ impl PhaseFunction for VmfMixture {
     fn mean_cosine(&self) -> f64 {
         VmfMixture::mean_cosine(self)
     }
+
+    fn amplitude_lobes(&self) -> Option<&[(f64, f64)]> {
+        Some(VmfMixture::amplitude_lobes(self))
+    }
 }
 
 /// Checks that a fit target is three-dimensional (after the options, as the fit checks them

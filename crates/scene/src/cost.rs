@@ -34,6 +34,9 @@ pub const MAX_PNG_FILES: usize = 10_000;
 const VERTEX_S: f64 = 1.5e-7;
 /// One endpoint leg of a connection (113 M/s).
 const LEG_S: f64 = 9e-9;
+/// The cost of one vMF lobe of a Gaussian beam's connection (a complex square root, logarithm
+/// and exponential), in plain legs.
+const GAUSSIAN_LEG: f64 = 8.0;
 /// One pair's product of legs, and its addition to a sum.
 const PAIR_S: f64 = 4e-9;
 /// One complex multiply-add of the rank-K covariance update (8 flops at 60 GFLOP/s).
@@ -336,6 +339,29 @@ impl Problem {
         }
     }
 
+    /// The number of endpoints in units of a plain leg's cost: a Gaussian beam's connection
+    /// costs about [`GAUSSIAN_LEG`] legs per vMF lobe of the costliest phase.
+    fn leg_cost(&self) -> f64 {
+        let (src, sen) = (self.scene.sources(), self.scene.sensors());
+        let gaussian = src
+            .iter()
+            .filter(|s| matches!(s, speckle_endpoints::Source::GaussianBeam(_)))
+            .count()
+            + sen
+                .iter()
+                .filter(|s| matches!(s, speckle_endpoints::Sensor::GaussianBeam(_)))
+                .count();
+        let lobes = self
+            .scene
+            .phases()
+            .iter()
+            .map(|p| p.amplitude_lobes().map_or(1, <[_]>::len))
+            .max()
+            .unwrap_or(1);
+        let plain = src.len() + sen.len() - gaussian;
+        plain as f64 + gaussian as f64 * lobes as f64 * GAUSSIAN_LEG
+    }
+
     /// Bytes of the medium's own data (a voxel grid's arrays).
     fn medium_bytes(&self) -> f64 {
         match self.scene.medium() {
@@ -354,20 +380,28 @@ impl Problem {
     /// the paths first (errors name the field), then estimates memory and time. The guard
     /// ([`guard`]) decides whether to go ahead.
     pub fn estimate(&self, command: Command, threads: usize) -> Result<Estimate, SceneError> {
-        // Every command here is a Monte Carlo render (or the mean field, which Gaussian beams
-        // do not have yet): refuse what the estimators would refuse, naming the endpoint.
-        speckle_endpoints::check_monte_carlo(self.scene.sources(), self.scene.sensors()).map_err(
-            |e| {
-                let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
-                invalid(field, reason)
-            },
-        )?;
+        // Every command here is a Monte Carlo render (or the mean field): refuse what the
+        // estimators would refuse, naming the endpoint. The covariance estimators connect
+        // Gaussian beams (near field); the others do not yet.
+        let (sources, sensors) = (self.scene.sources(), self.scene.sensors());
+        match command {
+            Command::Covariance | Command::Intensity | Command::Single => {
+                speckle_endpoints::check_near_field(sources, sensors, self.scene.phases())
+            }
+            Command::Fields | Command::Mean | Command::G1 => {
+                speckle_endpoints::check_monte_carlo(sources, sensors)
+            }
+        }
+        .map_err(|e| {
+            let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
+            invalid(field, reason)
+        })?;
         let threads = threads.max(1) as f64;
         let j = self.pairs() as f64;
         let r = &self.render;
         let rows = r.realizations;
         let (_, png_pixels) = self.pngs(command, rows)?;
-        let legs = (self.n_sources() + self.n_sensors()) as f64;
+        let legs = self.leg_cost();
         let fixed = self.medium_bytes() + self.endpoint_bytes() + 2.0 * png_pixels;
         let traced = matches!(
             command,

@@ -62,6 +62,8 @@ pub struct VmfMixture {
     ln_norm: f64,
     /// `ln pi_m - ln(Z) / 2`: the log-weights of the normalised amplitude.
     ln_amplitude_weight: Vec<f64>,
+    /// `(gamma_m, ln pi_m - ln(Z) / 2)` per lobe: the normalised amplitude as plain data.
+    amplitude_lobes: Vec<(f64, f64)>,
     /// `gamma_m + gamma_n` of each pair `m <= n`.
     pair_exponent: Vec<f64>,
     /// Cumulative probability of the pairs (`s^2` mass), ending at exactly 1.
@@ -149,11 +151,18 @@ impl VmfMixture {
             .map(|(w, &c)| w * mean_resultant_length(c))
             .sum::<f64>()
             / total;
-        let ln_amplitude_weight = lobes.iter().map(|l| l.ln_weight - 0.5 * ln_norm).collect();
+        let ln_amplitude_weight: Vec<f64> =
+            lobes.iter().map(|l| l.ln_weight - 0.5 * ln_norm).collect();
+        let amplitude_lobes = lobes
+            .iter()
+            .zip(&ln_amplitude_weight)
+            .map(|(l, &lw)| (l.gamma, lw))
+            .collect();
         Ok(Self {
             lobes,
             ln_norm,
             ln_amplitude_weight,
+            amplitude_lobes,
             pair_exponent,
             pair_cdf,
             mean_cosine,
@@ -202,6 +211,12 @@ impl VmfMixture {
     /// `int s dOmega = sum_m alpha_m` of the unnormalised amplitude.
     pub fn raw_integral(&self) -> f64 {
         self.lobes.iter().map(|l| l.alpha).sum()
+    }
+
+    /// The normalised amplitude `s(mu) / sqrt(Z) = sum_m e^(l_m + gamma_m mu)` as the pairs
+    /// `(gamma_m, l_m)`, one per lobe (what [`VmfMixture::lobes_about`] places on an axis).
+    pub fn amplitude_lobes(&self) -> &[(f64, f64)] {
+        &self.amplitude_lobes
     }
 
     /// The normalised amplitude as complex vMFs of the outgoing direction `w` for the unit

@@ -1,0 +1,73 @@
+//! Criterion benchmark of the near-field covariance (Bar et al. 2020, issue 11): the same
+//! renders with Gaussian-beam sources and sensors and with their far-field counterparts (plane
+//! waves and far-field sensors along the beams' axes), on the same medium and paths, so the
+//! ratio of the two times is the cost of the aperture integrals.
+//!
+//! - `nearfield/covariance/{far,gaussian}/<phase>/J=<pairs>`: `render_covariance` of 2 sources
+//!   x 8 sensors (`J = 16`), forward and reversed paths, 4096 paths, for an isotropic amplitude
+//!   (one vMF lobe) and a 3-lobe vMF amplitude; throughput in paths.
+//!
+//! A 20 x 20 x 8 wavelength slab of mean free path 4; fixed seeds. Run with
+//! `cargo bench --bench nearfield` (per core: `RAYON_NUM_THREADS=1`).
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use speckle::endpoints::GaussianBeam;
+use speckle::estimators::{
+    Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
+};
+use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::phase::Phase;
+use speckle::vmf::VmfMixture;
+use std::hint::black_box;
+use std::sync::Arc;
+
+fn scene(gaussian: bool, phase: Phase) -> Scene<HomogeneousBox, Phase> {
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(20.0, 20.0, 8.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
+    let beam = |f: DVec3| GaussianBeam::new("bench", f, DVec3::Z, 16.0).unwrap();
+    let sources: Vec<Source> = (0..2)
+        .map(|i| {
+            if gaussian {
+                Source::GaussianBeam(beam(DVec3::new(i as f64, 0.0, -4.0)))
+            } else {
+                Source::plane_wave(DVec3::Z).unwrap()
+            }
+        })
+        .collect();
+    let sensors: Vec<Sensor> = (0..8)
+        .map(|i| {
+            if gaussian {
+                Sensor::GaussianBeam(beam(DVec3::new(0.5 * i as f64, 0.0, -4.0)))
+            } else {
+                Sensor::far_field(DVec3::Z).unwrap()
+            }
+        })
+        .collect();
+    Scene::new(m, phase, 1.0, sources, sensors, Pair::all(2, 8)).unwrap()
+}
+
+fn covariance(c: &mut Criterion) {
+    let paths = 4096;
+    let opts = CovarianceOptions {
+        paths,
+        seed: 1,
+        coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
+    };
+    let lobed = Phase::Vmf(Arc::new(
+        VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-1.5, 0.2)]).unwrap(),
+    ));
+    for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed)] {
+        for (kind, gaussian) in [("far", false), ("gaussian", true)] {
+            let s = scene(gaussian, phase.clone());
+            let mut g = c.benchmark_group(format!("nearfield/covariance/{kind}/{name}"));
+            g.sample_size(10).throughput(Throughput::Elements(paths));
+            g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
+                b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))
+            });
+            g.finish();
+        }
+    }
+}
+
+criterion_group!(benches, covariance);
+criterion_main!(benches);
