@@ -102,8 +102,8 @@ pub fn mean_field_cancellable<M: Medium, P: PhaseFunction>(
     if matches!(src, Source::GaussianBeam(_)) || matches!(sen, Sensor::GaussianBeam(_)) {
         return Err(EndpointError::InvalidInput {
             field: "render.add_mean".into(),
-            reason: "the mean field of a gaussian_beam endpoint is not implemented; render \
-                     without the mean (render.add_mean = false)"
+            reason: "the mean field of a gaussian_beam endpoint is not implemented (covariance, \
+                     intensity and single renders write it as NaN)"
                 .into(),
         });
     }
