@@ -29,7 +29,10 @@ fn covariance_and_intensity_render_gaussian_beams() {
         if command == "covariance" {
             // The NaN means are announced.
             let e = stderr(&o);
-            assert!(e.contains("gaussian_beam endpoint is not implemented"), "{e}");
+            assert!(
+                e.contains("gaussian_beam endpoint is not implemented"),
+                "{e}"
+            );
         }
     }
     let out = dir.path().join("out");
@@ -38,7 +41,11 @@ fn covariance_and_intensity_render_gaussian_beams() {
     // J = 2 pairs: a 2 x 2 complex covariance whose diagonal is the intensity, bitwise.
     assert_eq!((cov.len(), intensity.len()), (8, 2));
     for j in 0..2 {
-        assert_eq!(cov[2 * (3 * j)].to_bits(), intensity[j].to_bits(), "pair {j}");
+        assert_eq!(
+            cov[2 * (3 * j)].to_bits(),
+            intensity[j].to_bits(),
+            "pair {j}"
+        );
         assert!(intensity[j] > 0.0 && intensity[j].is_finite());
     }
     let mean = npy_f64(&out.join("gaussian_beams_isotropic.mean.npy"));

@@ -414,8 +414,13 @@ impl Problem {
     ) -> Result<Option<(Vec<Complex64>, Option<String>)>, SceneError> {
         let s = &self.scene;
         let beam = |p: &Pair| {
-            matches!(s.sources()[p.source], speckle_endpoints::Source::GaussianBeam(_))
-                || matches!(s.sensors()[p.sensor], speckle_endpoints::Sensor::GaussianBeam(_))
+            matches!(
+                s.sources()[p.source],
+                speckle_endpoints::Source::GaussianBeam(_)
+            ) || matches!(
+                s.sensors()[p.sensor],
+                speckle_endpoints::Sensor::GaussianBeam(_)
+            )
         };
         if s.pairs()[pairs.clone()].iter().any(beam) {
             // The coherent field of a focused beam through the medium is not implemented: its
