@@ -16,7 +16,8 @@
 //!   sources and two point sensors;
 //! - tracking: with a uniform drift `U`, the correlation of `(i, v)` at `t1` with
 //!   `(i + tU, v + tU)` at `t1 + t` equals the correlation of a medium at rest with the same
-//!   `D`, within 4 combined standard errors.
+//!   `D`, within 4 combined standard errors;
+//! - the spatio-temporal ridge: `|C[(i, v), (i + dx, v + dx)](t)|` peaks at `dx = U t`.
 //!
 //! Tolerances: rounding (`1e-12` relative) for identities, 4 combined standard errors for the
 //! statistical comparisons. Run time: about 20 s in release on 2 cores.
@@ -70,6 +71,9 @@ fn point_scene() -> Scene<HomogeneousBox, Phase> {
     ];
     Scene::new(m, Phase::hg(0.5).unwrap(), 1.0, src, sen, Pair::all(2, 2)).unwrap()
 }
+
+/// Paths of the ridge test.
+const PATHS: u64 = 30_000;
 
 fn opts(paths: u64, seed: u64, coherence: Coherence) -> CovarianceOptions {
     CovarianceOptions {
@@ -449,6 +453,94 @@ fn tracking_the_flow_removes_the_drift() {
         );
         // And without tracking the drift decorrelates much more.
         assert!(n.norm() < 0.5 * b.norm(), "untracked {n} vs {b}");
+    }
+}
+
+/// The vertex of the parabola through `(x - h, a)`, `(x, b)`, `(x + h, c)` and its standard
+/// error from the standard errors `(sa, sb, sc)` of the three values (first-order propagation,
+/// errors taken as independent).
+fn parabola_vertex(x: f64, h: f64, [a, b, c]: [f64; 3], [sa, sb, sc]: [f64; 3]) -> (f64, f64) {
+    let (num, den) = (a - c, a - 2.0 * b + c);
+    let vertex = x + 0.5 * h * num / den;
+    let da = 0.5 * h * (1.0 / den - num / (den * den));
+    let db = 0.5 * h * (2.0 * num / (den * den));
+    let dc = 0.5 * h * (-1.0 / den - num / (den * den));
+    let se = ((da * sa).powi(2) + (db * sb).powi(2) + (dc * sc).powi(2)).sqrt();
+    (vertex, se)
+}
+
+/// The spatio-temporal ridge (Fig. 9): with a uniform drift `U` along x, the magnitude of
+/// `C[(i, v), (i + dx, v + dx)](t)` over the offset `dx` peaks at `dx = U t` (at `dx = 0` for
+/// `t = 0`). In a slab wide against the paths' spread, moving the medium by `U t` is moving
+/// the endpoints by `-U t`, so `C = g(dx - U t)`, and `|g(d)| = |g(-d)|` (translation
+/// invariance and the exchange of the two configurations), so the ridge is symmetric about
+/// `U t`. The grid (step `h`) holds `U t`, so the parabola through the largest value and its
+/// two neighbours has its vertex at `U t` up to noise: the tolerance is 4 standard errors of
+/// the vertex, propagated from those of the three values, and the test also asks that this
+/// tolerance be under one grid step `h`, so that a ridge misplaced by a step or more is caught
+/// (a flipped drift puts it at `-U t`, `2 U t / h` = 4 to 12 steps away for `t >= 1`).
+#[test]
+fn the_spatio_temporal_ridge_sits_at_u_t() {
+    let slab = Aabb::centered(DVec3::ZERO, DVec3::new(200.0, 200.0, 4.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(slab, 2.0, 1.0).unwrap();
+    let u = DVec3::new(0.5, 0.0, 0.0);
+    let d = 0.002;
+    let lags = [0.0, 1.0, 2.0, 3.0];
+    let h = 0.25;
+    let offsets: Vec<f64> = (0..15).map(|n| -1.75 + h * n as f64).collect();
+    let reference = offsets.iter().position(|x| *x == 0.0).unwrap();
+    let (i, v) = (DVec3::new(0.0, 0.0, -5.0), DVec3::new(1.0, 0.0, 5.0));
+    let shift = |dx: f64| DVec3::new(dx, 0.0, 0.0);
+    let src: Vec<Source> = offsets
+        .iter()
+        .map(|x| Source::point(i + shift(*x)))
+        .collect();
+    let sen: Vec<Sensor> = offsets
+        .iter()
+        .map(|x| Sensor::point(v + shift(*x)))
+        .collect();
+    let pairs = (0..offsets.len())
+        .map(|n| Pair {
+            source: n,
+            sensor: n,
+        })
+        .collect();
+    let scene = Scene::new(m, Phase::hg(0.6).unwrap(), 1.0, src, sen, pairs).unwrap();
+    let entries = Entries::List((0..offsets.len()).map(|n| (reference, n)).collect());
+    let o = opts(PATHS, 33, Coherence::ForwardAndReversed);
+    let flow = MotionModel::uniform(Motion::new(d, u).unwrap());
+    let c = render_correlation(&scene, &flow, &lags, &entries, &o, &NoProgress).unwrap();
+    for (l, t) in lags.iter().enumerate() {
+        let ridge: Vec<(f64, f64)> = (0..offsets.len())
+            .map(|e| {
+                let (z, s) = c.total(l, e);
+                (z.norm(), s.norm())
+            })
+            .collect();
+        let top = (0..offsets.len())
+            .max_by(|a, b| ridge[*a].0.total_cmp(&ridge[*b].0))
+            .unwrap();
+        assert!(
+            top > 0 && top + 1 < offsets.len(),
+            "t = {t}: the largest |C| is at the edge of the grid ({})",
+            offsets[top]
+        );
+        let three =
+            |f: fn(&(f64, f64)) -> f64| [f(&ridge[top - 1]), f(&ridge[top]), f(&ridge[top + 1])];
+        let (peak, se) = parabola_vertex(offsets[top], h, three(|r| r.0), three(|r| r.1));
+        let want = t * u.x;
+        println!(
+            "t = {t}: ridge at dx = {peak:.4} +- {se:.4} (U t = {want}), |C| max {:.4e} +- {:.1e}",
+            ridge[top].0, ridge[top].1
+        );
+        assert!(
+            4.0 * se < h,
+            "t = {t}: the vertex is too noisy to locate the ridge ({se})"
+        );
+        assert!(
+            (peak - want).abs() < 4.0 * se,
+            "t = {t}: the ridge is at dx = {peak} +- {se}, not at U t = {want}"
+        );
     }
 }
 

@@ -132,7 +132,9 @@ fn bad_motion_names_the_field() {
 /// `speckle field-sequence`: a `(R, T, n_sources, n_sensors)` complex array, its times and a
 /// sidecar; the frame at time 0 is bitwise `speckle fields` of the same scene and seed, later
 /// frames differ; the same output on 1 and 3 threads; a scene without `[motion]` or with a
-/// negative frame time exits with code 2 naming the field, and writes nothing.
+/// negative frame time exits with code 2 naming the field, and writes nothing; with a sensor
+/// grid, one PNG frame per (realization up to `--png-realizations`, source, time), none with
+/// `--no-png`.
 #[test]
 fn field_sequence_starts_at_the_static_fields() {
     let dir = tempfile::tempdir().unwrap();
@@ -214,4 +216,48 @@ fn field_sequence_starts_at_the_static_fields() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
     assert!(!dir.path().join("x").join("m.field_sequence.npy").exists());
+    // A sensor grid: one PNG frame per (realization up to png_realizations, source, time), and
+    // none with --no-png.
+    let grid = SCENE.replace(
+        "[[sensors]]\ntype = \"far\"\ndirection = [0.0, 0.0, 1.0]\n\n[[sensors]]\ntype = \"far\"\n\
+         direction = [0.3, 0.0, 1.0]\n",
+        "[[sensors]]\ntype = \"far_grid\"\ntheta_x_deg = [-5.0, 5.0]\ntheta_y_deg = [-2.0, 2.0]\n\
+         nx = 3\nny = 2\n",
+    );
+    assert!(grid.contains("far_grid"));
+    let grid = write(dir.path(), "g.toml", &format!("{grid}{render}{motion}"));
+    let g = grid.to_str().unwrap();
+    let o = speckle(
+        dir.path(),
+        &[
+            "field-sequence",
+            g,
+            "--out",
+            "p",
+            "-q",
+            "--png-realizations",
+            "2",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let pngs = |d: &str| {
+        let mut v: Vec<String> = std::fs::read_dir(dir.path().join(d))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .filter(|f| f.ends_with(".png"))
+            .collect();
+        v.sort();
+        v
+    };
+    let want: Vec<String> = (0..2)
+        .flat_map(|r| (0..3).map(move |l| format!("m.field_sequence.r{r}.s0.t{l}.png")))
+        .collect();
+    assert_eq!(pngs("p"), want);
+    let o = speckle(
+        dir.path(),
+        &["field-sequence", g, "--out", "q", "-q", "--no-png"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(pngs("q").is_empty());
+    assert!(dir.path().join("q").join("m.field_sequence.npy").exists());
 }

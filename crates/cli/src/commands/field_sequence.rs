@@ -25,6 +25,12 @@ pub struct Args {
     /// Do not add the speckle mean (`render.add_mean = false`).
     #[arg(long)]
     no_mean: bool,
+    /// Write no PNG.
+    #[arg(long)]
+    no_png: bool,
+    /// PNG frames for the first this many realizations (replaces `output.png_realizations`).
+    #[arg(long, value_name = "K")]
+    png_realizations: Option<usize>,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
@@ -33,6 +39,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         paths_per_realization: a.paths_per_realization,
         forward_only: a.forward_only,
         no_mean: a.no_mean,
+        no_png: a.no_png,
+        png_realizations: a.png_realizations,
         ..Overrides::default()
     })?;
     let refuse = |field: &str, reason: String| {
@@ -67,6 +75,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (r, nt) = (p.render.realizations, motion.lags.len());
     p.field_rows_size(r.saturating_mul(nt), "render.realizations")
         .map_err(in_scene(&p))?;
+    // One PNG frame per time of each image that `speckle fields` would write.
+    let (images, _) = p.pngs(Command::Fields, r).map_err(in_scene(&p))?;
+    let frames = images.saturating_mul(nt);
+    if frames > speckle::scene::cost::MAX_PNG_FILES {
+        return Err(refuse(
+            "output.png_realizations",
+            format!(
+                "this would write {frames} PNG frames, more than the limit of {}",
+                speckle::scene::cost::MAX_PNG_FILES
+            ),
+        )
+        .into());
+    }
     let staged = plan(&p, estimate(&p, Command::Fields), run)?;
     let opts = speckle::runs::field_options(&p);
     let total = (r as u64).saturating_mul(opts.paths_per_realization);
@@ -121,6 +142,9 @@ fn write(
             s / (rr * j).max(1) as f64
         })
         .collect();
+    if let Some(png) = frames(p, &mut staged, est, nt)? {
+        files["png"] = png;
+    }
     let render = json!({
         "realizations": rr,
         "paths_per_realization": rd.paths_per_realization,
@@ -141,4 +165,45 @@ fn write(
         threads(),
     );
     finish(staged)
+}
+
+/// Stages the intensity frames of the first `output.png_realizations` realizations, when the
+/// sensors form an image: `{name}.field_sequence.r{r}.s{s}.t{l}.png`, all times of one
+/// (realization, source) on one gray scale (3 times their mean intensity), so that the
+/// decorrelation shows. Returns the sidecar's entry.
+fn frames(
+    p: &Problem,
+    staged: &mut Staged,
+    est: &speckle::estimators::FieldSequence,
+    nt: usize,
+) -> anyhow::Result<Option<Value>> {
+    let Some(g) = p.png_grid() else {
+        return Ok(None);
+    };
+    let (n, ns, nd) = (&p.name, p.n_sources(), p.n_sensors());
+    let mut files = Vec::new();
+    for q in 0..p.render.realizations.min(p.output.png_realizations) {
+        for s in 0..ns {
+            let frame = |l: usize| -> Vec<f64> {
+                est.frame(q, l)[s * nd..(s + 1) * nd]
+                    .iter()
+                    .map(|u| u.norm_sqr())
+                    .collect()
+            };
+            let all: Vec<Vec<f64>> = (0..nt).map(frame).collect();
+            let mean = all.iter().flatten().sum::<f64>() / (nt * nd).max(1) as f64;
+            for (l, values) in all.iter().enumerate() {
+                let name = format!("{n}.field_sequence.r{q}.s{s}.t{l}.png");
+                staged.add(name.clone(), grid_png(p, g, values, 3.0 * mean)?);
+                files.push(name);
+            }
+        }
+    }
+    Ok(Some(json!({
+        "files": files,
+        "naming": "<name>.field_sequence.r{realization}.s{source}.t{time index}.png, row 0 = \
+                   iy 0 (top), column = ix",
+        "scale": "gray = min(255, round(255 I / (3 <I>))), I = |u|^2, <I> = mean intensity of \
+                  that realization and source over all its times and sensors; pixel replication",
+    })))
 }
