@@ -2,8 +2,6 @@
 //! the intensity render of the same scene and seed, `g1(0) = 1`, the correlation decays with
 //! the lag, `g2 = 1 + |g1|^2`, the contrast falls from 1; bad input exits with code 2 and names the field.
 
-use std::path::Path;
-
 mod common;
 use common::*;
 
@@ -31,17 +29,6 @@ direction = [0.3, 0.0, 1.0]
 paths = 3000
 seed = 4
 "#;
-
-/// The values of a `.npy` file (version 1.0) of little-endian `f64` (`<f8`, or `<c16` read as
-/// pairs).
-fn npy_f64(path: &Path) -> Vec<f64> {
-    let b = std::fs::read(path).unwrap();
-    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
-    b[10 + len..]
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-        .collect()
-}
 
 #[test]
 fn g1_zero_lag_is_the_intensity_and_decays() {

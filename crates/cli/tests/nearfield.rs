@@ -8,16 +8,6 @@ use common::*;
 
 const SCENE: &str = include_str!("../../fuzz/corpus/gaussian_beams_isotropic.toml");
 
-/// The values of a `.npy` file (version 1.0) of little-endian `f64`.
-fn npy_f64(path: &std::path::Path) -> Vec<f64> {
-    let b = std::fs::read(path).unwrap();
-    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
-    b[10 + len..]
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-        .collect()
-}
-
 #[test]
 fn covariance_and_intensity_render_gaussian_beams() {
     let dir = tempfile::tempdir().unwrap();

@@ -36,3 +36,14 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     std::fs::write(&p, text).unwrap();
     p
 }
+
+/// The values of a `.npy` file (version 1.0) of little-endian `f64` (`<f8`, or `<c16` read as
+/// pairs).
+pub fn npy_f64(path: &Path) -> Vec<f64> {
+    let b = std::fs::read(path).unwrap();
+    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
+    b[10 + len..]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
