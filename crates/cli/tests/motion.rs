@@ -1,6 +1,7 @@
 //! End-to-end tests of `speckle g1` and the `[motion]` table: the zero lag of `g1` is bitwise
 //! the intensity render of the same scene and seed, `g1(0) = 1`, the correlation decays with
-//! the lag, `g2 = 1 + |g1|^2`, the contrast falls from 1; bad input exits with code 2 and names the field.
+//! the lag, `g2 = 1 + |g1|^2`, the contrast falls from 1; bad input exits with code 2 and
+//! names the field; field sequences start at the static fields.
 
 mod common;
 use common::*;
