@@ -68,7 +68,7 @@ enum Command {
     Fields(fields::Args),
     /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
     /// scene's `[motion]` lags as frame times (>= 0), whose covariance is that of `speckle g1`.
-    FieldSequence(field_sequence::Args),
+    FieldSequence(fields::Args),
     /// Render the single-scattering covariance alone (Eq. 41; no path tracing).
     Single(single::Args),
     /// Compute the speckle mean of every pair (closed form).

@@ -2,47 +2,15 @@
 //! (Bar et al. 2023, Sec. 5): spatio-temporal transmission matrices (or speckle image sequences)
 //! whose covariance is the spatio-temporal covariance of `speckle g1`.
 
+use super::fields::Args;
 use super::*;
 use crate::error;
 use speckle::estimators::render_field_sequence;
 use speckle::scene::SceneError;
 use speckle::scene::npy::{encode_c16, encode_f8};
 
-/// Arguments of `field-sequence`.
-#[derive(Debug, clap::Args)]
-pub struct Args {
-    #[command(flatten)]
-    common: Common,
-    /// Number of realizations (replaces `render.realizations`).
-    #[arg(long, value_name = "R")]
-    realizations: Option<usize>,
-    /// Sub-paths per realization (replaces `render.paths_per_realization`).
-    #[arg(long, value_name = "N")]
-    paths_per_realization: Option<u64>,
-    /// Forward paths only (`render.coherence = "forward_only"`).
-    #[arg(long)]
-    forward_only: bool,
-    /// Do not add the speckle mean (`render.add_mean = false`).
-    #[arg(long)]
-    no_mean: bool,
-    /// Write no PNG.
-    #[arg(long)]
-    no_png: bool,
-    /// PNG frames for the first this many realizations (replaces `output.png_realizations`).
-    #[arg(long, value_name = "K")]
-    png_realizations: Option<usize>,
-}
-
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let (p, run) = a.common.load(Overrides {
-        realizations: a.realizations,
-        paths_per_realization: a.paths_per_realization,
-        forward_only: a.forward_only,
-        no_mean: a.no_mean,
-        no_png: a.no_png,
-        png_realizations: a.png_realizations,
-        ..Overrides::default()
-    })?;
+    let (p, run) = a.load()?;
     let refuse = |field: &str, reason: String| {
         p.in_document(SceneError::InvalidInput {
             field: field.into(),

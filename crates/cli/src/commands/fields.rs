@@ -5,7 +5,7 @@ use crate::error;
 use speckle::estimators::{FieldEstimate, render_fields};
 use speckle::scene::npy::encode_c16;
 
-/// Arguments of `fields`.
+/// Arguments of `fields` and `field-sequence`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -25,21 +25,29 @@ pub struct Args {
     /// Write no PNG.
     #[arg(long)]
     no_png: bool,
-    /// PNGs for the first this many realizations (replaces `output.png_realizations`).
+    /// PNGs (frames) for the first this many realizations (replaces
+    /// `output.png_realizations`).
     #[arg(long, value_name = "K")]
     png_realizations: Option<usize>,
 }
 
+impl Args {
+    /// The problem with these options applied (also `speckle field-sequence`'s).
+    pub fn load(&self) -> anyhow::Result<(Problem, RunOptions)> {
+        self.common.load(Overrides {
+            realizations: self.realizations,
+            paths_per_realization: self.paths_per_realization,
+            forward_only: self.forward_only,
+            no_mean: self.no_mean,
+            no_png: self.no_png,
+            png_realizations: self.png_realizations,
+            ..Overrides::default()
+        })
+    }
+}
+
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let (p, run) = a.common.load(Overrides {
-        realizations: a.realizations,
-        paths_per_realization: a.paths_per_realization,
-        forward_only: a.forward_only,
-        no_mean: a.no_mean,
-        no_png: a.no_png,
-        png_realizations: a.png_realizations,
-        ..Overrides::default()
-    })?;
+    let (p, run) = a.load()?;
     render(&p, run)
 }
 
