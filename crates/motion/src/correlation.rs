@@ -61,21 +61,9 @@ fn check_beta(beta: f64) -> Result<(), MotionError> {
     Ok(())
 }
 
-/// The speckle contrast `K(T) = sqrt((2 beta / T) int_0^T (1 - tau/T) |g1(tau)|^2 d tau)` of an
-/// exposure `T`, from `|g1|^2` sampled at increasing lags `lags` that start at 0 and reach `T`
-/// (`|g1|^2` is interpolated linearly between samples; the integral of the linear pieces
-/// against the weight `1 - tau/T` is exact).
-///
-/// ```
-/// use speckle_motion::correlation::{contrast, contrast_exponential};
-/// // g1 = exp(-t / tc): against the closed form.
-/// let tc = 0.3;
-/// let lags: Vec<f64> = (0..=2000).map(|i| i as f64 * 1e-3).collect();
-/// let g1_sq: Vec<f64> = lags.iter().map(|t| (-2.0 * t / tc).exp()).collect();
-/// let k = contrast(&lags, &g1_sq, 1.5, 1.0).unwrap();
-/// assert!((k - contrast_exponential(1.5, tc, 1.0)).abs() < 1e-6);
-/// ```
-pub fn contrast(lags: &[f64], g1_sq: &[f64], exposure: f64, beta: f64) -> Result<f64, MotionError> {
+/// Checks the lags (at least two, increasing strictly from 0), one finite `|g1|^2` per lag, and
+/// `beta`.
+fn check_curve(lags: &[f64], g1_sq: &[f64], beta: f64) -> Result<(), MotionError> {
     check_beta(beta)?;
     if lags.len() != g1_sq.len() || lags.len() < 2 {
         return Err(invalid(
@@ -100,6 +88,25 @@ pub fn contrast(lags: &[f64], g1_sq: &[f64], exposure: f64, beta: f64) -> Result
             format!("must be finite (got {})", g1_sq[i]),
         ));
     }
+    Ok(())
+}
+
+/// The speckle contrast `K(T) = sqrt((2 beta / T) int_0^T (1 - tau/T) |g1(tau)|^2 d tau)` of an
+/// exposure `T`, from `|g1|^2` sampled at increasing lags `lags` that start at 0 and reach `T`
+/// (`|g1|^2` is interpolated linearly between samples; the integral of the linear pieces
+/// against the weight `1 - tau/T` is exact).
+///
+/// ```
+/// use speckle_motion::correlation::{contrast, contrast_exponential};
+/// // g1 = exp(-t / tc): against the closed form.
+/// let tc = 0.3;
+/// let lags: Vec<f64> = (0..=2000).map(|i| i as f64 * 1e-3).collect();
+/// let g1_sq: Vec<f64> = lags.iter().map(|t| (-2.0 * t / tc).exp()).collect();
+/// let k = contrast(&lags, &g1_sq, 1.5, 1.0).unwrap();
+/// assert!((k - contrast_exponential(1.5, tc, 1.0)).abs() < 1e-6);
+/// ```
+pub fn contrast(lags: &[f64], g1_sq: &[f64], exposure: f64, beta: f64) -> Result<f64, MotionError> {
+    check_curve(lags, g1_sq, beta)?;
     if !(exposure > 0.0 && exposure.is_finite()) {
         return Err(invalid(
             "exposure",
@@ -139,13 +146,7 @@ pub fn contrast(lags: &[f64], g1_sq: &[f64], exposure: f64, beta: f64) -> Result
 /// `F1(T) = int_0^T tau |g1|^2` of the same linear interpolation, `K^2 = (2 beta / T) (F0 -
 /// F1 / T)`. Same requirements as [`contrast`] on the lags and values.
 pub fn contrast_curve(lags: &[f64], g1_sq: &[f64], beta: f64) -> Result<Vec<f64>, MotionError> {
-    let last = *lags.last().unwrap_or(&0.0);
-    if last > 0.0 {
-        // Checks the lags, the values and beta once (as an exposure of the whole range).
-        contrast(lags, g1_sq, last, beta)?;
-    } else {
-        contrast(lags, g1_sq, 1.0, beta)?;
-    }
+    check_curve(lags, g1_sq, beta)?;
     let (mut f0, mut f1) = (0.0, 0.0);
     let mut out = Vec::with_capacity(lags.len());
     out.push(beta.sqrt());
