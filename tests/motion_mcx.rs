@@ -4,12 +4,20 @@
 //! through y: 1/9 of the volume, D = 1e-6 cm^2/s, the rest static), source and sensor 5 mm apart
 //! on the face z = 0; `g1(t)` for t = 0 .. 50 us.
 //!
-//! A report, not a pass/fail check (ignored; `validation/run`): MCX launches a pencil beam at
-//! the source point and detects photons at the sensor point on the face, while point endpoints
-//! here are isotropic and must lie outside the medium (a point on the face has an infinite
-//! variance connection; sampling the first vertex from the endpoint, item 3 of issue 12, is not
-//! done), so they sit `EPS` below the face, and the normalised curves are expected to differ by
-//! the source and detector models. It prints `|g1|` against MCX's and the largest deviation.
+//! Source and sensor are isotropic points on the face, as in the authors' example: first
+//! vertices are sampled around them (Build 3 of issue 12), so the estimator has finite variance
+//! there. MCX launches a pencil beam at the source point and detects photons at the sensor
+//! point; at 5 transport mean free paths the normalised curves agree within our resolution.
+//!
+//! - `mcx_g1_is_reproduced` (CI): `|g1(t)| = |C(t)| / C(0)` from 16 independent renders of
+//!   60 000 paths, its standard error by the jackknife over the renders (the ratio's errors are
+//!   strongly correlated, so the first-order formula that ignores it overstates them); every
+//!   one of the 51 lags must lie within 4.5 standard errors of MCX's, and the curve must be
+//!   resolved (standard error below 0.01).
+//! - `mcx_dynamic_rods` (ignored; `validation/run`, `SPECKLE_MCX_PATHS`): one render, a report.
+
+use num_complex::Complex64;
+mod common_g1;
 
 use speckle::estimators::{
     Coherence, CovarianceOptions, Entries, NoProgress, Pair, Scene, Sensor, Source,
@@ -18,9 +26,6 @@ use speckle::estimators::{
 use speckle::medium::{Aabb, DVec3, Material, VoxelGrid};
 use speckle::motion::{Motion, MotionModel};
 use speckle::phase::Phase;
-
-/// Depth of the point endpoints below the face, cm.
-const EPS: f64 = 0.01;
 
 fn mcx() -> Vec<(f64, f64)> {
     let text = std::fs::read_to_string(concat!(
@@ -37,10 +42,8 @@ fn mcx() -> Vec<(f64, f64)> {
         .collect()
 }
 
-#[test]
-#[ignore]
-fn mcx_dynamic_rods() {
-    let reference = mcx();
+/// The scene: the rods' voxel grid, source and sensor on the face.
+fn scene() -> Scene<VoxelGrid, Phase> {
     let n = 100;
     let b = Aabb::new(DVec3::new(-0.5, -0.5, 0.0), DVec3::new(0.5, 0.5, 1.0)).unwrap();
     // Voxels 0.1 mm in x and z, one through y; dynamic where both indices are 0 mod 3.
@@ -54,52 +57,107 @@ fn mcx_dynamic_rods() {
     }
     let mats = vec![Material::single(10.0, 0.0), Material::single(10.0, 0.0)];
     let grid = VoxelGrid::from_materials(b, [n, 1, n], ids, mats).unwrap();
-    let dynamic = ids_fraction(&grid);
-    let scene = Scene::new(
+    Scene::new(
         grid,
         Phase::Isotropic,
         500e-7,
-        vec![Source::point(DVec3::new(-0.25, 0.0, -EPS))],
-        vec![Sensor::point(DVec3::new(0.25, 0.0, -EPS))],
+        vec![Source::point(DVec3::new(-0.25, 0.0, 0.0))],
+        vec![Sensor::point(DVec3::new(0.25, 0.0, 0.0))],
         Pair::all(1, 1),
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// `C(t)` and its standard error at the MCX lags, from `paths` paths of seed `seed`.
+fn render(scene: &Scene<VoxelGrid, Phase>, paths: u64, seed: u64) -> Vec<(Complex64, Complex64)> {
     let model =
         MotionModel::per_material(vec![Motion::STATIC, Motion::brownian(1e-6).unwrap()]).unwrap();
-    let lags: Vec<f64> = reference.iter().map(|r| r.0).collect();
-    let paths = std::env::var("SPECKLE_MCX_PATHS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(200_000u64);
-    let start = std::time::Instant::now();
+    let lags: Vec<f64> = mcx().iter().map(|r| r.0).collect();
     let c = render_correlation(
-        &scene,
+        scene,
         &model,
         &lags,
         &Entries::Diagonal,
         &CovarianceOptions {
             paths,
-            seed: 1,
-            coherence: Coherence::ForwardOnly,
+            seed,
+            coherence: Coherence::ForwardAndReversed,
             ..Default::default()
         },
         &NoProgress,
     )
     .unwrap();
+    (0..lags.len()).map(|l| c.total(l, 0)).collect()
+}
+
+#[test]
+fn mcx_g1_is_reproduced() {
+    let reference = mcx();
+    let scene = scene();
+    let groups: Vec<Vec<Complex64>> = (0..16)
+        .map(|g| {
+            render(&scene, 60_000, 100 + g)
+                .into_iter()
+                .map(|c| c.0)
+                .collect()
+        })
+        .collect();
+    let g1 = common_g1::g1_jackknife(&groups);
+    let mut worst: (f64, f64, f64) = (0.0, 0.0, 0.0);
+    for (l, (t, g_mcx)) in reference.iter().enumerate() {
+        let (g, se) = g1[l];
+        let z = if se > 0.0 { (g - g_mcx) / se } else { 0.0 };
+        if l % 10 == 0 {
+            eprintln!(
+                "t = {:4.0} us: |g1| {:.4} +- {se:.4}, MCX {g_mcx:.4}, z = {z:+.2}",
+                t * 1e6,
+                g
+            );
+        }
+        if z.abs() > worst.2.abs() {
+            worst = (*t, g - g_mcx, z);
+        }
+        assert!(se < 0.01, "g1 not resolved at t = {t}: se {se}");
+        assert!(
+            z.abs() < 4.5,
+            "t = {t}: |g1| {g} +- {se} against MCX {g_mcx}"
+        );
+    }
+    eprintln!(
+        "largest deviation in SE: {:+.4} (z = {:+.2}) at t = {:.0} us",
+        worst.1,
+        worst.2,
+        worst.0 * 1e6
+    );
+}
+
+#[test]
+#[ignore]
+fn mcx_dynamic_rods() {
+    let reference = mcx();
+    let scene = scene();
+    let dynamic = ids_fraction(scene.medium());
+    let paths = std::env::var("SPECKLE_MCX_PATHS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200_000u64);
+    let start = std::time::Instant::now();
+    let c = render(&scene, paths, 1);
     let secs = start.elapsed().as_secs_f64();
-    let (c0, s0) = c.total(0, 0);
+    let (c0, s0) = c[0];
     println!(
         "MCX rods (dynamic fraction {dynamic:.3}): {paths} paths in {secs:.1} s, C(0) = {:.4e} +- {:.1e}",
         c0.re, s0.re
     );
-    let mut worst: (f64, f64) = (0.0, 0.0);
+    let mut worst: (f64, f64, f64) = (0.0, 0.0, 0.0);
     for (l, (t, g_mcx)) in reference.iter().enumerate() {
-        let (ct, st) = c.total(l, 0);
+        let (ct, st) = c[l];
         let g = ct.norm() / c0.re;
-        // First-order error of the ratio, ignoring the (positive) correlation of C(t) and C(0).
+        // First-order error of the ratio, ignoring the (positive) correlation of C(t) and C(0):
+        // an overstatement (see `mcx_g1_is_reproduced` for the jackknife).
         let se = g * ((st.re / ct.re).powi(2) + (s0.re / c0.re).powi(2)).sqrt();
         if (g - g_mcx).abs() > worst.1.abs() {
-            worst = (*t, g - g_mcx);
+            worst = (*t, g - g_mcx, se);
         }
         if l % 5 == 0 {
             println!(
@@ -109,8 +167,10 @@ fn mcx_dynamic_rods() {
         }
     }
     println!(
-        "  largest deviation {:+.4} at t = {:.0} us",
+        "  largest deviation {:+.4} (+- {:.4}, z = {:+.1}) at t = {:.0} us",
         worst.1,
+        worst.2,
+        worst.1 / worst.2,
         worst.0 * 1e6
     );
 }

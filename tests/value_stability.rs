@@ -274,7 +274,7 @@ fn tracer_and_flights_are_pinned() {
     let s = tiny();
     let t = Tracer::with_types(s.medium(), s.phases(), TracerConfig::default()).unwrap();
     let mut rng = PathRng::new(11, 3);
-    let (x1, ty, w) = t.sample_first_vertex(&mut rng);
+    let (x1, ty, w) = t.sample_first_vertex(&mut rng).unwrap();
     let flight = s
         .medium()
         .sample_flight(x1, DVec3::Z, &mut || rng.next_f64())

@@ -168,7 +168,7 @@ impl Source {
         Self::Point { position }
     }
 
-    /// Checks the source against a medium: directions unit, points outside the medium, and both
+    /// Checks the source against a medium: directions unit, points finite, and both
     /// in the plane `z = 0` in flatland.
     pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
         Ok(match self {
@@ -180,6 +180,14 @@ impl Source {
             },
             Self::GaussianBeam(b) => Self::GaussianBeam(b.validated("source", m)?),
         })
+    }
+
+    /// The position of a point source, `None` for other kinds.
+    pub fn point_position(&self) -> Option<DVec3> {
+        match *self {
+            Self::Point { position } => Some(position),
+            _ => None,
+        }
     }
 
     /// The source with far-field direction negated, as a sensor (for reciprocity).
@@ -227,7 +235,7 @@ impl Sensor {
         Self::Point { position }
     }
 
-    /// Checks the sensor against a medium: directions unit, points outside the medium, and both
+    /// Checks the sensor against a medium: directions unit, points finite, and both
     /// in the plane `z = 0` in flatland.
     pub fn validated<M: Medium>(self, m: &M) -> Result<Self, EndpointError> {
         Ok(match self {
@@ -239,6 +247,14 @@ impl Sensor {
             },
             Self::GaussianBeam(b) => Self::GaussianBeam(b.validated("sensor", m)?),
         })
+    }
+
+    /// The position of a point sensor, `None` for other kinds.
+    pub fn point_position(&self) -> Option<DVec3> {
+        match *self {
+            Self::Point { position } => Some(position),
+            _ => None,
+        }
     }
 
     /// The sensor with far-field direction negated, as a source (for reciprocity).

@@ -482,12 +482,3 @@ fn compact(n: usize, idx: impl Iterator<Item = usize> + Clone) -> (Vec<usize>, V
     }
     (list, idx.map(|i| local[i]).collect())
 }
-
-/// The factor on `weight * a a^H` for a vertex `b >= 2`: 1/2 with reversed paths (Eq. 36: each
-/// vertex set is sampled in both orders), 1 with forward paths only.
-pub(crate) fn coherence_factor(c: Coherence) -> f64 {
-    match c {
-        Coherence::ForwardAndReversed => 0.5,
-        Coherence::ForwardOnly => 1.0,
-    }
-}

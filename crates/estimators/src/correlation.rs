@@ -39,7 +39,7 @@
 //! `E` entries and `L` lags, with the end-vertex products formed once per vertex and lag-free
 //! when nothing drifts.
 
-use crate::connect::{Connector, Cvec, coherence_factor};
+use crate::connect::{Connector, Cvec};
 use crate::{
     Coherence, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
@@ -48,7 +48,7 @@ use num_complex::Complex64;
 use speckle_endpoints::{Endpoints, Legs};
 use speckle_medium::Medium;
 use speckle_motion::{MotionFactor, MotionModel, MotionState};
-use speckle_paths::{PathRng, Tracer, Vertex, VertexSink};
+use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::{BatchSum, CMatrix, Layout, PartGroups, Poll, Progress, batch_moments_grouped};
 
@@ -527,7 +527,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 );
             }
         }
-        let weight = coherence_factor(self.coherence) * v.weight;
+        let weight = v.weight_for(self.coherence);
         if let Some(p) = &self.plan.powers {
             for l in 0..self.plan.lags.len() {
                 if self.plan.zero[l] {
@@ -668,7 +668,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
     };
     let e_len: usize = list.len();
-    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
+    let tracer = scene.tracer(options.sampling, options.coherence)?;
     let probe = Connector::new(scene);
     let local: Vec<Entry> = list
         .iter()

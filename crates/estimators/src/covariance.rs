@@ -1,13 +1,11 @@
 //! The speckle covariance estimator (Alg. 1, Eqs. 33-36) and the single-scattering estimator
 //! of Eq. 41.
 
-use crate::connect::{Connector, coherence_factor};
+use crate::connect::Connector;
 use crate::{Coherence, EstimatorError, MatrixEstimate, Scene};
 use glam::DVec3;
 use speckle_medium::Medium;
-use speckle_paths::{
-    FactorValue, NoFactor, PathFactor, PathRng, Tracer, TracerConfig, Vertex, VertexSink,
-};
+use speckle_paths::{FactorValue, NoFactor, PathFactor, PathRng, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::{
     BatchSum, Layout, MomentsReduction, MomentsRun, MomentsSpec, PartialMoments, Poll, Progress,
@@ -80,8 +78,6 @@ struct CovarianceSink<'a, 's, 'p, M, P, F: PathFactor> {
     factor: &'a F,
     sums: &'a mut [BatchSum],
     coherence: Coherence,
-    /// The factor 1/2 of forward-and-reversed vertices (Eq. 36) or 1.
-    half: f64,
     poll: &'a mut Poll<'p>,
 }
 
@@ -111,7 +107,12 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
         }
         let f = self.factor.vertex(self.state, v);
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
-        push(&mut self.sums[1], &self.conn.a, self.half * v.weight, f);
+        push(
+            &mut self.sums[1],
+            &self.conn.a,
+            v.weight_for(self.coherence),
+            f,
+        );
     }
 
     #[inline]
@@ -335,7 +336,7 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
 ) -> Result<MomentsRun, EstimatorError> {
     check_paths(options.paths)?;
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
-    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
+    let tracer = scene.tracer(options.sampling, options.coherence)?;
     let layout = match (F::Value::REAL, diagonal) {
         (true, false) => Layout::Hermitian,
         (true, true) => Layout::HermitianDiagonal,
@@ -353,7 +354,6 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
             factor,
             sums,
             coherence: options.coherence,
-            half: coherence_factor(options.coherence),
             poll,
         };
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
@@ -379,12 +379,14 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
 ) -> Result<MatrixEstimate, EstimatorError> {
     check_paths(options.paths)?;
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
-    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
+    // Single scattering has no reversed order: any coherence samples it alike.
+    let tracer = scene.tracer(options.sampling, Coherence::ForwardAndReversed)?;
     let init = || Connector::new(scene);
     let path = |conn: &mut Connector<M, P>, n: u64, sums: &mut [BatchSum], _: &mut Poll| {
-        let (x1, ty, w) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, n));
-        conn.first(x1, ty);
-        sums[0].push_hermitian(&conn.a, w);
+        if let Some((x1, ty, w)) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, n)) {
+            conn.first(x1, ty);
+            sums[0].push_hermitian(&conn.a, w);
+        }
     };
     let (mut parts, _) = batch_moments(
         options.paths,

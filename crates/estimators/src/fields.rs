@@ -1,12 +1,12 @@
 //! Speckle field sampling (Alg. 2, Sec. 5.2).
 
-use crate::connect::{Connector, Cvec, Tile, coherence_factor, tiles};
+use crate::connect::{Connector, Cvec, Tile, tiles};
 use crate::field_sequences::{Frames, Trajectory};
 use crate::{CMatrix, Coherence, EstimatorError, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::Medium;
-use speckle_paths::{PathRng, Tracer, TracerConfig, Vertex, VertexSink};
+use speckle_paths::{PathRng, TracerConfig, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::{
     Batches, PairShare, PartialRows, Poll, Progress, Shard, ShardError, assemble_rows,
@@ -88,7 +88,6 @@ struct FieldSink<'c, 's, 'p, 'f, M, P> {
     u: &'c mut [Cvec],
     motion: Option<&'c mut Trajectory<'f>>,
     coherence: Coherence,
-    factor: f64,
     poll: &'c mut Poll<'p>,
 }
 
@@ -116,7 +115,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for FieldSink<'_, '_, '_, '_, M, P>
     }
 
     fn vertex(&mut self, v: &Vertex, rng: &mut PathRng) {
-        let z = random_phase(rng) * (self.factor * v.weight).sqrt();
+        let z = random_phase(rng) * v.weight_for(self.coherence).sqrt();
         match self.motion.as_deref_mut() {
             None => {
                 let conn = &mut self.conns[0];
@@ -347,7 +346,7 @@ fn render_rows<M: Medium, P: PhaseFunction>(
             reason: "at least one path per realization is needed".into(),
         });
     }
-    let tracer = Tracer::with_types(scene.medium(), scene.phases(), options.sampling)?;
+    let tracer = scene.tracer(options.sampling, options.coherence)?;
     let j = scene.len();
     let share = shard.map_or(0..j, |s| s.units(j));
     let mean = PairShare {
@@ -404,7 +403,6 @@ fn render_rows<M: Medium, P: PhaseFunction>(
                 u: &mut u,
                 motion: trajectory.as_mut(),
                 coherence: options.coherence,
-                factor: coherence_factor(options.coherence),
                 poll,
             };
             tracer.trace(&mut PathRng::new(options.seed, stream), &mut sink);

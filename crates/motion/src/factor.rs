@@ -160,6 +160,7 @@ mod tests {
             type1: 0,
             ty: 0,
             weight: 1.0,
+            both_orders: 0.5,
         }
     }
 

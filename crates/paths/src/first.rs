@@ -82,6 +82,29 @@ impl FirstVertexSampler {
         }
     }
 
+    /// The density of `x` (inside the medium's box).
+    pub(crate) fn pdf<M: Medium>(&self, m: &M, x: DVec3) -> f64 {
+        match *self {
+            Self::Uniform { inv_v } => m.sigma_s(x) * inv_v,
+            Self::Exponential {
+                axis,
+                sign,
+                rate,
+                norm,
+                inv_area,
+                ..
+            } => {
+                let b = m.bounds();
+                let t = if sign >= 0.0 {
+                    x[axis] - b.min()[axis]
+                } else {
+                    b.max()[axis] - x[axis]
+                };
+                rate * (-rate * t).exp() / norm * inv_area
+            }
+        }
+    }
+
     /// A point and its density.
     #[inline]
     pub(crate) fn sample<M: Medium>(&self, m: &M, u: [f64; 3]) -> (DVec3, f64) {
@@ -146,12 +169,124 @@ impl FirstDirectionSampler {
             }
         }
     }
+
+    /// The density of `w` as a first direction from a vertex where `p` scatters.
+    #[inline]
+    pub(crate) fn pdf<P: PhaseFunction>(&self, p: &P, w: DVec3) -> f64 {
+        match *self {
+            Self::Uniform(d) => d.uniform_direction_pdf(),
+            Self::Phase(axis) => p.pdf_direction(axis, w),
+        }
+    }
+}
+
+/// The first-vertex mixture of a medium with point endpoints inside it or next to it: with
+/// probability `volume` the volume strategy ([`FirstVertexSampler`]), otherwise, with equal
+/// probabilities, a point `x1 = p + r w` around one of the `points`, `w` uniform on the sphere
+/// (circle) and `r` exponential at `rate`, density `rate exp(-rate r) / (4 pi r^2)` (flatland
+/// `/ (2 pi r)`) over all space. Points that land outside the medium's box start no path (their
+/// contribution, zero, is counted). The `1/r^2` of the density cancels the `1/r^2` of a point
+/// endpoint's connection, which near the endpoint would otherwise give the estimator infinite
+/// variance (`shared/notes/spatiotemporal-2023.md`, Build 3 of issue 12).
+#[derive(Debug, Clone)]
+pub(crate) struct PointMixture {
+    pub(crate) points: Vec<DVec3>,
+    pub(crate) rates: Vec<f64>,
+    /// Probability of the volume strategy (0: the points alone).
+    pub(crate) volume: f64,
+    pub(crate) dimension: Dimension,
+}
+
+impl PointMixture {
+    /// The density of the component around point `k` at `x`.
+    #[inline]
+    fn point_pdf(&self, k: usize, x: DVec3) -> f64 {
+        let r = (x - self.points[k]).length();
+        let rate = self.rates[k];
+        let radial = rate * (-rate * r).exp();
+        match self.dimension {
+            Dimension::Three => radial / (4.0 * std::f64::consts::PI * r * r),
+            Dimension::Two => radial / (std::f64::consts::TAU * r),
+        }
+    }
+
+    /// The mixture density at `x` (inside the box), given the volume strategy's density there.
+    #[inline]
+    pub(crate) fn pdf(&self, volume_pdf: f64, x: DVec3) -> f64 {
+        let share = (1.0 - self.volume) / self.points.len() as f64;
+        let points: f64 = (0..self.points.len()).map(|k| self.point_pdf(k, x)).sum();
+        self.volume * volume_pdf + share * points
+    }
+
+    /// A point sampled from one of the point components, chosen by `c` in `[0, 1)`, with two
+    /// variates for the direction and one for the distance.
+    #[inline]
+    pub(crate) fn sample_point(&self, c: f64, u: [f64; 3]) -> DVec3 {
+        let n = self.points.len();
+        let k = (((c - self.volume) / (1.0 - self.volume) * n as f64) as usize).min(n - 1);
+        let w = self.dimension.sample_uniform_direction([u[0], u[1]]);
+        let r = -(-u[2]).ln_1p() / self.rates[k];
+        self.points[k] + r * w
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use speckle_medium::{Aabb, HomogeneousBox};
+
+    #[test]
+    fn point_mixture_densities_integrate_to_their_mass_in_the_box() {
+        // E[1 / q(x); x in box] over mixture samples is the box's measure: `pdf` is the density
+        // `sample_point` draws from, in 3D and flatland (one point inside the box, one on a
+        // face, so that some samples leave it).
+        let cases = [
+            (
+                Aabb::new(DVec3::new(-1.0, -1.0, 0.0), DVec3::new(1.0, 1.0, 2.0)).unwrap(),
+                [DVec3::new(0.3, 0.0, 0.0), DVec3::new(-0.2, 0.5, 1.0)],
+                Dimension::Three,
+            ),
+            (
+                Aabb::flat(glam::DVec2::new(-1.0, 0.0), glam::DVec2::new(1.0, 2.0)).unwrap(),
+                [DVec3::new(0.3, 0.0, 0.0), DVec3::new(-0.2, 1.0, 0.0)],
+                Dimension::Two,
+            ),
+        ];
+        for (b, points, dimension) in cases {
+            let m = HomogeneousBox::new(b, 1.5, 0.0).unwrap();
+            let vol = FirstVertexSampler::new(FirstVertex::Uniform, &m).unwrap();
+            let mix = PointMixture {
+                points: points.to_vec(),
+                rates: vec![1.5, 0.7],
+                volume: 1.0 / 3.0,
+                dimension,
+            };
+            let n = 400_000;
+            let (mut acc, mut acc2) = (0.0, 0.0);
+            let mut rng = crate::PathRng::new(9, 0);
+            for _ in 0..n {
+                let c = rng.next_f64();
+                let x = if c < mix.volume {
+                    vol.sample(&m, rng.next_3()).0
+                } else {
+                    mix.sample_point(c, rng.next_3())
+                };
+                if b.contains(x) {
+                    let y = 1.0 / mix.pdf(vol.pdf(&m, x), x);
+                    acc += y;
+                    acc2 += y * y;
+                }
+            }
+            let measure = b.measure();
+            let mean = acc / n as f64;
+            let se = ((acc2 / n as f64 - mean * mean) / n as f64).sqrt();
+            assert!(
+                (mean - measure).abs() < 4.0 * se,
+                "{dimension}: {mean} +- {se} vs {measure}"
+            );
+            assert!(se < 0.01 * measure, "{se}");
+        }
+    }
 
     #[test]
     fn exponential_depth_density_integrates_to_one() {
@@ -171,6 +306,7 @@ mod tests {
                 ];
                 let (x, q) = s.sample(&m, u);
                 assert!(b.contains(x), "{x}");
+                assert!((s.pdf(&m, x) - q).abs() <= 1e-12 * q);
                 acc += 1.0 / q;
             }
             let vol = b.volume();

@@ -1,7 +1,7 @@
 //! The sub-path tracer.
 
-use crate::first::{FirstDirectionSampler, FirstVertexSampler};
-use crate::{FirstDirection, FirstVertex, PathError, PathRng};
+use crate::first::{FirstDirectionSampler, FirstVertexSampler, PointMixture};
+use crate::{Coherence, FirstDirection, FirstVertex, PathError, PathRng};
 use glam::DVec3;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
@@ -49,6 +49,26 @@ pub struct Vertex {
     /// Throughput over sampling density, `sigma_s(x1) / (q_o(x1) p(w1))` (Eq. 36 without the
     /// forward/reversed factor 1/2).
     pub weight: f64,
+    /// The factor on `weight` of a contribution that sums the forward and the reversed terms
+    /// (Eq. 36): exactly 1/2 when the vertices are sampled in this order and in reverse with
+    /// the same density (or, with a first-vertex density that is not symmetric, an unbiased
+    /// equal split), and with point endpoints next to the medium the balance heuristic
+    /// `q(x) / (q(x) + q(x^r))` of the densities of the two orders
+    /// ([`Tracer::with_point_endpoints`]).
+    pub both_orders: f64,
+}
+
+impl Vertex {
+    /// The weight of this vertex's contribution: `both_orders * weight` with forward and
+    /// reversed terms, `weight` with forward terms only (which a tracer with point endpoints
+    /// does not support: see [`Tracer::needs_reversed_paths`]).
+    #[inline]
+    pub fn weight_for(&self, coherence: Coherence) -> f64 {
+        match coherence {
+            Coherence::ForwardAndReversed => self.both_orders * self.weight,
+            Coherence::ForwardOnly => self.weight,
+        }
+    }
 }
 
 /// Receives the vertices of a sub-path as they are sampled.
@@ -80,6 +100,7 @@ pub struct Tracer<'a, M, P> {
     typed: bool,
     first_vertex: FirstVertexSampler,
     first_direction: FirstDirectionSampler,
+    points: Option<PointMixture>,
     max_vertices: u32,
 }
 
@@ -118,8 +139,81 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             typed: phases.len() > 1,
             first_vertex: FirstVertexSampler::new(config.first_vertex, medium)?,
             first_direction: FirstDirectionSampler::new(config.first_direction, dimension)?,
+            points: None,
             max_vertices: config.max_vertices,
         })
+    }
+
+    /// Adds to the first-vertex strategy one component around each of `points` (the point
+    /// sources and sensors of a scene) that lies in the medium's box or within one extinction
+    /// length of it (`1 / sigma_t`, at the box point nearest to it): with `n` such points the
+    /// first vertex is sampled from the configured strategy with probability `1 / (n + 1)` and
+    /// from around each point with probability `1 / (n + 1)` each, at distance `r` with density
+    /// `sigma_t exp(-sigma_t r)` in a uniform direction. When the scene has no other endpoints
+    /// (`others` false) and every point is near, the configured strategy gets no share: the
+    /// point components alone cover the medium, with the `exp(-sigma_t r) / r^2` of a point's
+    /// own leg (diffuse correlation spectroscopy, where a volume strategy mostly samples paths
+    /// that reach neither endpoint).
+    ///
+    /// Every vertex then weighs its forward and reversed terms by the balance heuristic of the
+    /// two orders ([`Vertex::both_orders`]), so that the last vertex, too, is in effect sampled
+    /// from around a point sensor: the `1/r^2` of a point endpoint's connection, which gives
+    /// the plain estimator infinite variance next to the endpoint, is cancelled by the density
+    /// at both ends of a path. Points farther away are left to the plain strategy, and without
+    /// any near point the tracer is unchanged (bitwise).
+    pub fn with_point_endpoints(mut self, points: &[DVec3], others: bool) -> Self {
+        let m = self.medium;
+        let b = m.bounds();
+        let (mut near, mut rates) = (vec![], vec![]);
+        let mut far = false;
+        for &p in points {
+            let nearest = p.clamp(b.min(), b.max());
+            let rate = match m.uniform_sigma_t() {
+                Some(s) => s,
+                None => m.sigma_t(nearest),
+            };
+            // A void next to the point: any fixed rate is unbiased; one over the box's size.
+            let rate = if rate > 0.0 && rate.is_finite() {
+                rate
+            } else {
+                1.0 / b.size().length()
+            };
+            if (p - nearest).length() * rate > 1.0 {
+                far = true;
+            } else if !near.contains(&p) {
+                near.push(p);
+                rates.push(rate);
+            }
+        }
+        self.points = (!near.is_empty()).then(|| PointMixture {
+            volume: if others || far {
+                1.0 / (near.len() + 1) as f64
+            } else {
+                0.0
+            },
+            points: near,
+            rates,
+            dimension: m.dimension(),
+        });
+        self
+    }
+
+    /// Whether contributions must sum forward and reversed terms
+    /// ([`Coherence::ForwardAndReversed`]): true with point endpoints next to the medium, whose
+    /// sampling at the last vertex is the reversed order of the path. A caller with forward
+    /// paths only must not add point endpoints ([`Vertex::weight_for`]).
+    pub fn needs_reversed_paths(&self) -> bool {
+        self.points.is_some()
+    }
+
+    /// The first-vertex density at `x`, in the box.
+    #[inline]
+    fn first_pdf(&self, x: DVec3) -> f64 {
+        let volume = self.first_vertex.pdf(self.medium, x);
+        match &self.points {
+            Some(p) => p.pdf(volume, x),
+            None => volume,
+        }
     }
 
     /// The medium.
@@ -148,17 +242,36 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     }
 
     /// Samples only a first vertex and returns it with its particle type and single-scattering
-    /// weight `sigma_s(x1) / q_o(x1)` (for estimators of single scattering alone, Eq. 41).
+    /// weight `sigma_s(x1) / q_o(x1)` (for estimators of single scattering alone, Eq. 41), or
+    /// `None` where the sample starts no path: a point sampled around a point endpoint that
+    /// lies outside the medium ([`Tracer::with_point_endpoints`]), whose contribution is zero.
     #[inline]
-    pub fn sample_first_vertex(&self, rng: &mut PathRng) -> (DVec3, usize, f64) {
-        let (x1, q) = self.first_vertex.sample(self.medium, rng.next_3());
+    pub fn sample_first_vertex(&self, rng: &mut PathRng) -> Option<(DVec3, usize, f64)> {
+        let (x1, q) = match &self.points {
+            None => self.first_vertex.sample(self.medium, rng.next_3()),
+            Some(p) => {
+                let c = rng.next_f64();
+                let x = if c < p.volume {
+                    self.first_vertex.sample(self.medium, rng.next_3()).0
+                } else {
+                    p.sample_point(c, rng.next_3())
+                };
+                if !self.medium.contains(x) || self.medium.sigma_s(x) <= 0.0 {
+                    return None;
+                }
+                (x, self.first_pdf(x))
+            }
+        };
         let ty = self.sample_type(x1, rng);
-        (x1, ty, self.medium.sigma_s(x1) / q)
+        Some((x1, ty, self.medium.sigma_s(x1) / q))
     }
 
-    /// Samples one sub-path, handing every vertex to `sink`; returns the number of vertices.
+    /// Samples one sub-path, handing every vertex to `sink`; returns the number of vertices
+    /// (0 where the sample starts no path, see [`Tracer::sample_first_vertex`]).
     pub fn trace<S: VertexSink>(&self, rng: &mut PathRng, sink: &mut S) -> u32 {
-        let (x1, type1, w_single) = self.sample_first_vertex(rng);
+        let Some((x1, type1, w_single)) = self.sample_first_vertex(rng) else {
+            return 0;
+        };
         sink.first(x1, type1, w_single, rng);
         let (w12, p_w) = self
             .first_direction
@@ -179,6 +292,17 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             }
             b += 1;
             let ty = self.sample_type(next, rng);
+            let both_orders = match self.points {
+                None => 0.5,
+                // q(x^r) / q(x) = weight / w_rev, w_rev = sigma_s(x_b) / (q_o(x_b) p(-w_in)):
+                // the interior densities of the two orders are equal (flights and roulette
+                // give sigma_s at every vertex but the first, phase functions are symmetric).
+                Some(_) => {
+                    let p_rev =
+                        self.first_pdf(next) * self.first_direction.pdf(&self.phases[ty], -dir);
+                    1.0 / (1.0 + weight * p_rev / self.medium.sigma_s(next))
+                }
+            };
             sink.vertex(
                 &Vertex {
                     index: b,
@@ -189,6 +313,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     type1,
                     ty,
                     weight,
+                    both_orders,
                 },
                 rng,
             );

@@ -25,6 +25,7 @@ use num_complex::Complex64;
 use rayon::prelude::*;
 use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::Medium;
+use speckle_paths::{Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -244,6 +245,45 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// The sensors.
     pub fn sensors(&self) -> &[Sensor] {
         &self.sensors
+    }
+
+    /// The path sampler of this scene's renders: `sampling`'s strategies, plus, with forward and
+    /// reversed paths, first vertices around the point sources and sensors that lie inside the
+    /// medium or within one extinction length of it
+    /// ([`speckle_paths::Tracer::with_point_endpoints`]). Forward-only renders keep the plain
+    /// strategies, which have infinite variance for a point in or on the medium: such a scene
+    /// is refused, naming `render.coherence`. A configuration the sampler cannot use names
+    /// `render`.
+    pub fn tracer(
+        &self,
+        sampling: TracerConfig,
+        coherence: Coherence,
+    ) -> Result<Tracer<'_, M, P>, SceneError> {
+        let points: Vec<_> = (self.sources.iter().filter_map(Source::point_position))
+            .chain(self.sensors.iter().filter_map(Sensor::point_position))
+            .collect();
+        let tracer = Tracer::with_types(&self.medium, &self.phases, sampling)
+            .map_err(|e| invalid("render", e.to_string()))?;
+        match coherence {
+            Coherence::ForwardAndReversed => {
+                let n = self.sources.len() + self.sensors.len();
+                Ok(tracer.with_point_endpoints(&points, points.len() < n))
+            }
+            Coherence::ForwardOnly => match points.iter().find(|p| self.medium.contains(**p)) {
+                Some(p) => Err(invalid(
+                    "render.coherence",
+                    format!(
+                        "a point source or sensor at {:?} lies in or on the medium: that needs \
+                         forward and reversed paths (\"forward_and_reversed\"), which sample the \
+                         last vertex of a path around a point sensor as the first vertex of the \
+                         reversed path (with forward paths only, the 1/r^2 connection next to the \
+                         point gives the estimator infinite variance)",
+                        p.to_array()
+                    ),
+                )),
+                None => Ok(tracer),
+            },
+        }
     }
 
     /// The (source, sensor) pairs, indexing covariance rows and columns and field entries.

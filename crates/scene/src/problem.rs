@@ -17,7 +17,6 @@ use num_complex::Complex64;
 use serde_json::{Value, json};
 use speckle_endpoints::Pair;
 use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Medium};
-use speckle_paths::Tracer;
 use speckle_phase::{Phase, PhaseFunction};
 use std::fmt::Write as _;
 use std::ops::Range;
@@ -289,8 +288,7 @@ impl Problem {
             None => None,
         };
         // Check the sampling configuration against the medium now rather than at render time.
-        Tracer::with_types(scene.medium(), scene.phases(), render.sampling)
-            .map_err(|p| invalid("render", p))?;
+        scene.tracer(render.sampling, render.coherence)?;
         Ok(Self {
             file,
             name,

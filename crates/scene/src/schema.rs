@@ -242,7 +242,7 @@ pub enum SourceSpec {
         /// Propagation direction (normalised).
         direction: [f64; 3],
     },
-    /// A point source `e^{ikr}/r` at `position` (outside the medium).
+    /// A point source `e^{ikr}/r` at `position` (outside, on or inside the medium).
     Point {
         /// Position.
         position: [f64; 3],
@@ -287,7 +287,7 @@ pub enum SensorSpec {
         /// Viewing direction, from the medium to the sensor (normalised).
         direction: [f64; 3],
     },
-    /// The field at `position` (outside the medium).
+    /// The field at `position` (outside, on or inside the medium).
     Point {
         /// Position.
         position: [f64; 3],

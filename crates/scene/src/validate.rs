@@ -2,7 +2,7 @@
 //! messages every input of the workspace uses (scene files, study files, tool options).
 
 use crate::SceneError;
-use speckle_medium::{Aabb, DVec3, Dimension};
+use speckle_medium::{DVec3, Dimension};
 use std::fmt::Display;
 
 /// A [`SceneError::InvalidInput`] naming `field`.
@@ -163,24 +163,6 @@ pub fn position(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, Scene
 pub fn flat_direction(field: &str, v: [f64; 3], dim: Dimension) -> Result<DVec3, SceneError> {
     planar(field, vec3(field, v)?, dim)?;
     direction(field, v)
-}
-
-/// `p` if it lies outside the box `b`: point endpoints must (`what` describes `p`).
-pub fn outside(field: &str, p: DVec3, b: &Aabb, what: &str) -> Result<DVec3, SceneError> {
-    if b.contains(p) {
-        Err(invalid(
-            field,
-            format!(
-                "{what} {:?} lies in or on the medium (box from {:?} to {:?}); point endpoints \
-                 must be outside it",
-                p.to_array(),
-                b.min().to_array(),
-                b.max().to_array()
-            ),
-        ))
-    } else {
-        Ok(p)
-    }
 }
 
 #[cfg(test)]

@@ -11,8 +11,7 @@ use super::MAX_ENDPOINTS;
 use crate::SceneError;
 use crate::schema::{SensorSpec, SourceSpec};
 use crate::validate::{
-    MIN_COMPONENT, direction, finite, flat_direction, generated_direction, invalid, outside,
-    position,
+    MIN_COMPONENT, direction, finite, flat_direction, generated_direction, invalid, position,
 };
 use serde::Serialize;
 use speckle_endpoints::{EndpointError, GaussianBeam, Sensor, Source};
@@ -222,12 +221,7 @@ pub fn build_sources(
                 desc.push(EndpointInfo::plane(i, d));
             }
             SourceSpec::Point { position: p } => {
-                let p = outside(
-                    &f("position"),
-                    position(&f("position"), *p, dim)?,
-                    b,
-                    "position",
-                )?;
+                let p = position(&f("position"), *p, dim)?;
                 out.push(Source::Point { position: p });
                 desc.push(EndpointInfo::point(i, p));
             }
@@ -339,12 +333,7 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 desc.push(EndpointInfo::far(i, d));
             }
             SensorSpec::Point { position: p } => {
-                let p = outside(
-                    &f("position"),
-                    position(&f("position"), *p, dim)?,
-                    b,
-                    "position",
-                )?;
+                let p = position(&f("position"), *p, dim)?;
                 out.push(Sensor::Point { position: p });
                 desc.push(EndpointInfo::point(i, p));
             }
@@ -483,7 +472,6 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 for iy in 0..*ny {
                     for ix in 0..*nx {
                         let p = o + sx * ix as f64 + sy * iy as f64;
-                        outside(&e, p, b, &format!("grid point (ix = {ix}, iy = {iy}) at"))?;
                         out.push(Sensor::Point { position: p });
                         desc.push(EndpointInfo {
                             ix: Some(ix),
