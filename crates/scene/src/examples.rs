@@ -30,6 +30,7 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../scenes/mudiff_cbs_2d.toml"),
     ),
     ("beads", include_str!("../../../scenes/beads.toml")),
+    ("dcs", include_str!("../../../scenes/dcs.toml")),
 ];
 
 /// `(name, text)` of the embedded data files, which scenes name as `embedded:NAME`.
