@@ -64,6 +64,11 @@ enum Command {
     /// Temporal field correlations of moving scatterers (Bar et al. 2023): C(t) and
     /// g1(t) = C(t) / C(0) of every pair at the scene's `[motion]` lags.
     G1(covariance::Args),
+    /// Spatio-temporal map of moving scatterers (Bar et al. 2023, Eqs. 36-37, Fig. 7): the
+    /// correlation C[0, k](t) of the first pair with every pair k at the scene's `[motion]`
+    /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the
+    /// tracked map), and a PNG of |C[0, k](t)| / C[0, 0](0).
+    Map(covariance::Args),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(fields::Args),
     /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
@@ -111,6 +116,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Covariance(a) => covariance::run(&a),
         Command::Intensity(a) => intensity::run(&a),
         Command::G1(a) => g1::run(&a),
+        Command::Map(a) => map::run(&a),
         Command::Fields(a) => fields::run(&a),
         Command::FieldSequence(a) => field_sequence::run(&a),
         Command::Single(a) => single::run(&a),

@@ -249,3 +249,48 @@ fn field_sequence_starts_at_the_static_fields() {
     assert!(pngs("q").is_empty());
     assert!(dir.path().join("q").join("m.field_sequence.npy").exists());
 }
+
+#[test]
+fn map_zero_lag_is_the_first_covariance_row_and_decays() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion =
+        "\n[motion]\ndiffusion = 0.002\ndrift = [0.05, 0.0, 0.0]\nlags = [0.0, 1.0, 4.0]\n";
+    let scene = write(dir.path(), "m.toml", &format!("{SCENE}{motion}"));
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["map", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = speckle(
+        dir.path(),
+        &["covariance", s, "--out", "out", "-q", "--no-png"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // (K, L) = (2, 3) complex: [k][l] = (re, im).
+    let m = npy_f64(&out.join("m.map.npy"));
+    let se = npy_f64(&out.join("m.map_stderr.npy"));
+    let c = npy_f64(&out.join("m.cov.npy"));
+    assert_eq!(m.len(), 2 * 3 * 2);
+    for k in 0..2 {
+        // Zero lag: the covariance's first row, C[0, k], from the same paths.
+        let (mr, mi) = (m[k * 6], m[k * 6 + 1]);
+        let (cr, ci) = (c[2 * k], c[2 * k + 1]);
+        let scale = c[0];
+        assert!(
+            (mr - cr).abs() <= 1e-12 * scale && (mi - ci).abs() <= 1e-12 * scale,
+            "pair {k}: map {mr} {mi}, covariance {cr} {ci}"
+        );
+    }
+    // C[0, 0](t) decays in magnitude well beyond its errors.
+    let norm = |k: usize, l: usize| m[k * 6 + 2 * l].hypot(m[k * 6 + 2 * l + 1]);
+    assert!(norm(0, 2) + 4.0 * se[4].hypot(se[5]) < norm(0, 0));
+    let png = std::fs::read(out.join("m.map.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("m.map.json")).unwrap()).unwrap();
+    assert_eq!(meta["files"]["shape"], serde_json::json!([2, 3]));
+    // No [motion] table: exit 2 naming it.
+    let plain = write(dir.path(), "p.toml", SCENE);
+    let o = speckle(dir.path(), &["map", plain.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
+}

@@ -107,3 +107,65 @@ pub fn temporal(p: &Problem, progress: &dyn Progress) -> Result<Temporal, RunErr
         paths: est.paths,
     })
 }
+
+/// A spatio-temporal map (Bar et al. 2023, Eqs. 36-37, Fig. 7): the correlation of the first
+/// pair with every pair `k` of the pair list, `c[k](t) = C[0, k](t) = E[u_0(t1) conj(u_k(t1 +
+/// t))] - m_0 conj(m_k)`, at the lags of `[motion]`. With one source and a line of sensors
+/// `v + dx_k` this is `c(dx, t)` of Eq. 36; with pairs that shift source and sensor together
+/// (`pairs = [[0, 0], [1, 1], ...]`) it is the tracked map of Eq. 37 and Fig. 7b. Tables are
+/// `K x L`, pair-major (`[k * L + l]` is pair `k` at `lags[l]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Map {
+    /// The time lags, as given in `[motion]`.
+    pub lags: Vec<f64>,
+    /// Number `K` of pairs (the map's columns).
+    pub pairs: usize,
+    /// `C[0, k](t)`.
+    pub correlation: Vec<Complex64>,
+    /// Standard errors of [`Self::correlation`] (real part: of the real part; imaginary: of
+    /// the imaginary part).
+    pub correlation_stderr: Vec<Complex64>,
+    /// `|C[0, k](t)| / C[0, 0](0)`, when a lag is 0 and `C[0, 0](0)` is positive.
+    pub normalised: Option<Vec<f64>>,
+    /// Number of sampled paths.
+    pub paths: u64,
+}
+
+/// Renders the spatio-temporal map [`Map`] of `p` at the lags of its `[motion]` table (an
+/// error naming `motion` when it has none).
+pub fn map(p: &Problem, progress: &dyn Progress) -> Result<Map, RunError> {
+    let motion = motion(p)?;
+    let opts = crate::covariance_options(p);
+    let k = p.pairs();
+    let entries = Entries::List((0..k).map(|j| (0, j)).collect());
+    let est = render_correlation(
+        &p.scene,
+        &motion.model,
+        &motion.lags,
+        &entries,
+        &opts,
+        progress,
+    )?;
+    let nl = motion.lags.len();
+    let (mut c, mut se) = (Vec::with_capacity(k * nl), Vec::with_capacity(k * nl));
+    for e in 0..k {
+        let (v, s) = est.curve(e);
+        c.extend(v);
+        se.extend(s);
+    }
+    let normalised = motion
+        .lags
+        .iter()
+        .position(|t| *t == 0.0)
+        .map(|z| c[z].re)
+        .filter(|c0| *c0 > 0.0)
+        .map(|c0| c.iter().map(|v| v.norm() / c0).collect());
+    Ok(Map {
+        lags: motion.lags.clone(),
+        pairs: k,
+        correlation: c,
+        correlation_stderr: se,
+        normalised,
+        paths: est.paths,
+    })
+}

@@ -31,6 +31,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
     ),
     ("beads", include_str!("../../../scenes/beads.toml")),
     ("dcs", include_str!("../../../scenes/dcs.toml")),
+    (
+        "spatiotemporal_2d",
+        include_str!("../../../scenes/spatiotemporal_2d.toml"),
+    ),
 ];
 
 /// `(name, text)` of the embedded data files, which scenes name as `embedded:NAME`.

@@ -10,6 +10,7 @@ pub mod fields;
 pub mod fit_phase;
 pub mod g1;
 pub mod intensity;
+pub mod map;
 pub mod mean;
 pub mod memory_spectrum;
 pub mod merge;
