@@ -673,6 +673,39 @@ fn g1<'py>(
     Ok(d)
 }
 
+/// Renders the spatio-temporal map `C[0, k](t)` of the first pair against every pair at the
+/// lags of `[motion]` (`speckle map`; Bar et al. 2023, Eqs. 36-37).
+#[pyfunction]
+#[pyo3(signature = (problem, threads=None, force=false))]
+fn map<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    threads: Option<usize>,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = &problem.p;
+    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    temporal::guard(p, t, force).map_err(|e| run_error(py, e))?;
+    let r = interruptible(py, threads, |pr| temporal::map(p, pr))?
+        .map_err(|e| run_error(py, e))?;
+    let shape = [r.pairs, r.lags.len()];
+    let d = PyDict::new(py);
+    d.set_item("kind", "map")?;
+    d.set_item("map", c16(py, &r.correlation, &shape)?)?;
+    d.set_item("map_stderr", c16(py, &r.correlation_stderr, &shape)?)?;
+    d.set_item("lags", PyArray1::from_slice(py, &r.lags))?;
+    let normalised = r
+        .normalised
+        .as_deref()
+        .map(|v| -> PyResult<Bound<'py, PyAny>> {
+            Ok(PyArray1::from_slice(py, v).reshape(shape)?.into_any())
+        })
+        .transpose()?;
+    d.set_item("normalised", normalised)?;
+    d.set_item("paths", r.paths)?;
+    Ok(d)
+}
+
 /// The speckle mean of every pair (closed form; `speckle mean`).
 #[pyfunction]
 fn mean<'py>(py: Python<'py>, problem: &PyProblem) -> PyResult<Bound<'py, PyDict>> {
@@ -873,6 +906,7 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(single, m)?)?;
     m.add_function(wrap_pyfunction!(mean, m)?)?;
     m.add_function(wrap_pyfunction!(g1, m)?)?;
+    m.add_function(wrap_pyfunction!(map, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     Ok(())
 }

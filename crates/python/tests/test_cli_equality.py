@@ -96,6 +96,26 @@ def test_g1_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
     assert r.correlation[:, 0].real.tobytes() == i.intensity.ravel().tobytes()
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_map_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
+    """`speckle.spatiotemporal_map` writes the arrays of `speckle map` bitwise; at lag 0 it is
+    the first row of the covariance."""
+    scene_file = tmp_path / "moving.toml"
+    scene_file.write_text(
+        tiny_file.read_text()
+        + '\n[motion]\ndiffusion = 0.01\ndrift = [0.1, 0.0, 0.0]\nlags = [0.0, 0.5, 2.0]\n'
+    )
+    out = tmp_path / "out"
+    cli(speckle_bin, "map", str(scene_file), "--out", str(out), "-q", "--paths", "3001")
+    r = speckle.spatiotemporal_map(scene_file, paths=3001, threads=threads)
+    for key in ["map", "map_stderr", "lags"]:
+        same(out / f"tiny.{key}.npy", getattr(r, key))
+    assert r.map.shape == (12, 3) and r.paths == 3001
+    assert r.normalised[0, 0] == 1.0
+    c = speckle.covariance(scene_file, paths=3001, threads=threads)
+    assert np.allclose(r.map[:, 0], c.covariance[0], rtol=0, atol=1e-12 * c.covariance[0, 0].real)
+
+
 def test_g1_needs_motion(tiny_file):
     with pytest.raises(speckle.SceneError) as e:
         speckle.g1(tiny_file)

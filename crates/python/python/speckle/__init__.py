@@ -57,6 +57,7 @@ __all__ = [
     "FieldsResult",
     "G1Result",
     "IntensityResult",
+    "MapResult",
     "MeanResult",
     "Result",
     "Scene",
@@ -75,6 +76,7 @@ __all__ = [
     "read_shard",
     "save_shard",
     "single",
+    "spatiotemporal_map",
     "wave",
 ]
 
@@ -405,8 +407,27 @@ class G1Result(Result):
     """Number of sampled paths."""
 
 
+class MapResult(Result):
+    """The spatio-temporal map of moving scatterers (``speckle map``,
+    :func:`spatiotemporal_map`; Bar et al. 2023, Eqs.
+    36-37): the first pair against every pair ``k`` at the lags of ``[motion]``. Arrays are
+    ``(K, L)``: pair ``k`` at ``lags[l]``."""
+
+    map: np.ndarray
+    """``C[0, k](t) = E[u_0(t1) conj(u_k(t1 + t))] - m_0 conj(m_k)``, complex128."""
+    map_stderr: np.ndarray
+    """Its standard errors (real part: of the real part; imaginary: of the imaginary part)."""
+    lags: np.ndarray
+    """``(L,)`` float64, as in ``[motion]``."""
+    normalised: Optional[np.ndarray]
+    """``|C[0, k](t)| / C[0, 0](0)`` (float64), when a lag is 0."""
+    paths: int
+    """Number of sampled paths."""
+
+
 _RESULTS = {
     "g1": G1Result,
+    "map": MapResult,
     "covariance": CovarianceResult,
     "intensity": IntensityResult,
     "fields": FieldsResult,
@@ -564,6 +585,26 @@ def g1(
     """
     s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
     return _result(s, _speckle.g1(s._p, threads, force))  # type: ignore[return-value]
+
+
+def spatiotemporal_map(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> MapResult:
+    """Renders the spatio-temporal map ``C[0, k](t)`` of the first pair against every pair at
+    the lags of the scene's ``[motion]`` table (Bar et al. 2023, Eq. 36 with a line of sensors,
+    Eq. 37 with pairs that shift source and sensor together). A scene without ``[motion]``
+    raises :class:`SceneError` naming ``motion``.
+
+    >>> r = speckle.spatiotemporal_map(scene)       # doctest: +SKIP
+    >>> r.normalised                                # |c(dx, t)| / c(0, 0), (K, L)
+    """
+    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    return _result(s, _speckle.map(s._p, threads, force))  # type: ignore[return-value]
 
 
 def mean(scene: SceneLike) -> MeanResult:
