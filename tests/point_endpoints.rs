@@ -10,6 +10,8 @@
 //!   4.5 combined standard errors, in 3D and flatland, for the covariance, the spatio-temporal
 //!   correlation of moving scatterers and with other volume and direction strategies. A wrong
 //!   density in the mixture or in the reversed order shows up as a bias here.
+//! - Sampled fields with endpoints on the faces have the covariance of the covariance render
+//!   (the field sampler takes the same vertex weights).
 //! - With the endpoints on the face, the standard error falls as `1/sqrt(N)` (a heavy tail, as
 //!   the plain `1/r^2` connection gives, would not): the variance is finite.
 //! - Forward-only renders with point endpoints in or on the medium are refused, naming
@@ -17,8 +19,8 @@
 
 use glam::DVec2;
 use speckle::estimators::{
-    Coherence, CovarianceEstimate, CovarianceOptions, Entries, NoProgress, Pair, Scene, Sensor,
-    Source, render_correlation, render_covariance,
+    Coherence, CovarianceEstimate, CovarianceOptions, Entries, FieldOptions, NoProgress, Pair,
+    Scene, Sensor, Source, render_correlation, render_covariance, render_fields,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::motion::{Motion, MotionModel};
@@ -300,4 +302,52 @@ fn forward_only_is_refused_for_point_endpoints_on_the_medium() {
     assert!(e.to_string().starts_with("render.coherence:"), "{e}");
     // Outside the medium forward-only renders keep the plain strategy.
     assert!(render_covariance(&scene_3d(WITHIN), &opts, &NoProgress).is_ok());
+}
+
+#[test]
+fn sampled_fields_have_the_covariance_with_endpoints_on_the_faces() {
+    let scene = scene_3d(0.0);
+    let cov = render_covariance(
+        &scene,
+        &options(200_000, 11, TracerConfig::default()),
+        &NoProgress,
+    )
+    .unwrap();
+    let r = 3000;
+    let f = render_fields(
+        &scene,
+        &FieldOptions {
+            realizations: r,
+            paths_per_realization: 200,
+            seed: 12,
+            coherence: Coherence::ForwardAndReversed,
+            add_mean: false,
+            sampling: TracerConfig::default(),
+        },
+        &NoProgress,
+    )
+    .unwrap();
+    let j = scene.len();
+    let mut worst: f64 = 0.0;
+    for a in 0..j {
+        for b in a..j {
+            // E[u_a conj(u_b)] over realizations, and its standard error.
+            let x: Vec<_> = (0..r)
+                .map(|i| f.fields.get(i, a) * f.fields.get(i, b).conj())
+                .collect();
+            let n = r as f64;
+            let mean = x.iter().sum::<num_complex::Complex64>() / n;
+            let var = |g: fn(num_complex::Complex64) -> f64| {
+                x.iter().map(|v| (g(*v) - g(mean)).powi(2)).sum::<f64>() / (n - 1.0) / n
+            };
+            let (se_re, se_im) = (var(|v| v.re).sqrt(), var(|v| v.im).sqrt());
+            let (c, s) = cov.total.get(a, b);
+            worst = worst.max((mean.re - c.re).abs() / se_re.hypot(s.re));
+            if a != b {
+                worst = worst.max((mean.im - c.im).abs() / se_im.hypot(s.im));
+            }
+        }
+    }
+    eprintln!("sampled fields against the covariance, endpoints on the faces: max z {worst:.2}");
+    assert!(worst < 4.5, "max z {worst}");
 }

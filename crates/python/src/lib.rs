@@ -686,8 +686,7 @@ fn map<'py>(
     let p = &problem.p;
     let t = threads.unwrap_or_else(rayon::current_num_threads);
     temporal::guard(p, t, force).map_err(|e| run_error(py, e))?;
-    let r = interruptible(py, threads, |pr| temporal::map(p, pr))?
-        .map_err(|e| run_error(py, e))?;
+    let r = interruptible(py, threads, |pr| temporal::map(p, pr))?.map_err(|e| run_error(py, e))?;
     let shape = [r.pairs, r.lags.len()];
     let d = PyDict::new(py);
     d.set_item("kind", "map")?;
