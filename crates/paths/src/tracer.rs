@@ -6,6 +6,10 @@ use glam::DVec3;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
 
+/// Most point components of the first-vertex mixture for points outside the medium
+/// ([`Tracer::with_point_endpoints`]).
+pub const MAX_OUTSIDE_COMPONENTS: usize = 64;
+
 /// How sub-paths are sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TracerConfig {
@@ -160,11 +164,13 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// from around a point sensor: the `1/r^2` of a point endpoint's connection, which gives
     /// the plain estimator infinite variance next to the endpoint, is cancelled by the density
     /// at both ends of a path. Points farther away are left to the plain strategy, and without
-    /// any near point the tracer is unchanged (bitwise).
+    /// any near point the tracer is unchanged (bitwise). Every vertex evaluates the density of
+    /// every component: when more than [`MAX_OUTSIDE_COMPONENTS`] points are near, only those in
+    /// or on the medium's box (which need it) get components.
     pub fn with_point_endpoints(mut self, points: &[DVec3], others: bool) -> Self {
         let m = self.medium;
         let b = m.bounds();
-        let (mut near, mut rates) = (vec![], vec![]);
+        let mut near = vec![];
         let mut far = false;
         for &p in points {
             let nearest = p.clamp(b.min(), b.max());
@@ -180,11 +186,18 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             };
             if (p - nearest).length() * rate > 1.0 {
                 far = true;
-            } else if !near.contains(&p) {
-                near.push(p);
-                rates.push(rate);
+            } else if !near.iter().any(|(q, _, _)| *q == p) {
+                near.push((p, rate, p == nearest));
             }
         }
+        // Every vertex evaluates the density of every component: beyond a few dozen points
+        // (a camera grid next to the medium) only those in or on the medium, which need it
+        // for a finite variance, are kept; the others go back to the plain strategy.
+        if near.len() > MAX_OUTSIDE_COMPONENTS {
+            far |= near.iter().any(|(_, _, inside)| !inside);
+            near.retain(|(_, _, inside)| *inside);
+        }
+        let (near, rates): (Vec<_>, Vec<_>) = near.into_iter().map(|(p, r, _)| (p, r)).unzip();
         self.points = (!near.is_empty()).then(|| PointMixture {
             volume: if others || far {
                 1.0 / (near.len() + 1) as f64
@@ -408,6 +421,37 @@ mod tests {
         };
         let e = Tracer::new(&m, &Phase::FlatIsotropic, cfg).unwrap_err();
         assert!(matches!(e, PathError::NotInPlane { .. }), "{e}");
+    }
+
+    #[test]
+    fn point_components_are_kept_for_points_in_the_medium_beyond_the_cap() {
+        let b = Aabb::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0)).unwrap();
+        let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+        let t = || Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap();
+        // A camera grid half an extinction length above the box: components up to the cap.
+        let grid: Vec<DVec3> = (0..MAX_OUTSIDE_COMPONENTS + 1)
+            .map(|i| DVec3::new(0.05 * i as f64, 1.0, 2.5))
+            .collect();
+        let few = t().with_point_endpoints(&grid[..MAX_OUTSIDE_COMPONENTS], true);
+        assert_eq!(
+            few.points.as_ref().unwrap().points.len(),
+            MAX_OUTSIDE_COMPONENTS
+        );
+        assert!(!t().with_point_endpoints(&grid, true).needs_reversed_paths());
+        // Beyond the cap a point on the face keeps its component, and the volume its share.
+        let mut with_face = grid.clone();
+        with_face.push(DVec3::new(1.0, 1.0, 2.0));
+        let p = t().with_point_endpoints(&with_face, false).points.unwrap();
+        assert_eq!(p.points, vec![DVec3::new(1.0, 1.0, 2.0)]);
+        assert!(p.volume > 0.0);
+        // Points alone, all near: no volume share; a far point restores it.
+        let alone = t().with_point_endpoints(&grid[..2], false).points.unwrap();
+        assert_eq!(alone.volume, 0.0);
+        let far = [grid[0], DVec3::new(0.0, 0.0, 9.0)];
+        assert_eq!(
+            t().with_point_endpoints(&far, false).points.unwrap().volume,
+            0.5
+        );
     }
 
     #[test]
