@@ -113,7 +113,7 @@ def test_map_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
     assert r.map.shape == (12, 3) and r.paths == 3001
     assert r.normalised[0, 0] == 1.0
     c = speckle.covariance(scene_file, paths=3001, threads=threads)
-    assert np.allclose(r.map[:, 0], c.covariance[0], rtol=0, atol=1e-12 * c.covariance[0, 0].real)
+    assert np.allclose(r.map[:, 0], c.cov[0], rtol=0, atol=1e-12 * c.cov[0, 0].real)
 
 
 def test_g1_needs_motion(tiny_file):

@@ -231,11 +231,11 @@ def test_malformed_dicts_raise_value_errors_naming_the_field(tmp_path, what, tex
 
 
 def test_case_counts():
-    # Every case of the command line's malformed-scene tests that a dict can express: the 46 of
+    # Every case of the command line's malformed-scene tests that a dict can express: the 44 of
     # `malformed_scenes_name_the_field_and_exit_with_2` (not "malformed TOML" nor "duplicate
     # key", syntax errors of a file), the 6 of `far_arc_and_tagged_tables_name_their_keys_in_3d`
-    # and the 33 of `malformed_flatland_scenes_name_the_field_and_exit_with_2`.
-    assert len(CASES_3D) == 52 and len(CASES_2D) == 33
+    # and the 32 of `malformed_flatland_scenes_name_the_field_and_exit_with_2`.
+    assert len(CASES_3D) == 50 and len(CASES_2D) == 32
 
 
 def test_dicts_name_the_fields_of_python_values(tmp_path):

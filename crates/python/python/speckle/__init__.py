@@ -407,6 +407,7 @@ class G1Result(Result):
     """Number of sampled paths."""
 
 
+@dataclass(frozen=True)
 class MapResult(Result):
     """The spatio-temporal map of moving scatterers (``speckle map``,
     :func:`spatiotemporal_map`; Bar et al. 2023, Eqs.
