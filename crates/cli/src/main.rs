@@ -74,6 +74,11 @@ enum Command {
     /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
     /// scene's `[motion]` lags as frame times (>= 0), whose covariance is that of `speckle g1`.
     FieldSequence(fields::Args),
+    /// Dynamic wavefront shaping (Bar et al. 2023, Fig. 10): a phase-only mask over the scene's
+    /// sources (modulator modes) learned over the first `--learn` frames of a field sequence
+    /// while the medium moves, then frozen; the focus at sensor `--target` against native
+    /// speckle (enhancement, field correlations, an SVG plot).
+    Shaping(shaping::ShapingArgs),
     /// Render the single-scattering covariance alone (Eq. 41; no path tracing).
     Single(single::Args),
     /// Compute the speckle mean of every pair (closed form).
@@ -119,6 +124,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Map(a) => map::run(&a),
         Command::Fields(a) => fields::run(&a),
         Command::FieldSequence(a) => field_sequence::run(&a),
+        Command::Shaping(a) => shaping::run(&a),
         Command::Single(a) => single::run(&a),
         Command::Mean(a) => mean::run(&a),
         Command::Wave(a) => wave::run(&a),

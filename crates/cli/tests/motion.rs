@@ -294,3 +294,44 @@ fn map_zero_lag_is_the_first_covariance_row_and_decays() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("motion"), "{}", stderr(&o));
 }
+
+#[test]
+fn shaping_writes_its_curves_and_names_bad_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = "\n[motion]\ndiffusion = 0.002\nlags = [0.0, 1.0, 2.0]\n";
+    let tilts = "\n[[sources]]\ntype = \"plane_tilts\"\ntilts_deg = [5.0, 10.0, 15.0]\n";
+    let scene = write(
+        dir.path(),
+        "m.toml",
+        &format!("{SCENE}{tilts}{motion}").replace(
+            "paths = 3000",
+            "realizations = 64\npaths_per_realization = 50",
+        ),
+    );
+    let s = scene.to_str().unwrap();
+    let o = speckle(
+        dir.path(),
+        &["shaping", s, "--learn", "2", "--no-mean", "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // (T, 2): value and standard error, from the last learning frame on.
+    let e = npy_f64(&out.join("m.shaping_enhancement.npy"));
+    let c = npy_f64(&out.join("m.shaping_focus_correlation.npy"));
+    assert_eq!((e.len(), c.len()), (4, 4));
+    assert!(e[0] > 1.5, "4 modes focus: enhancement {}", e[0]);
+    assert_eq!(c[0], 1.0);
+    assert_eq!(npy_f64(&out.join("m.shaping_times.npy")), vec![0.0, 1.0]);
+    assert!(out.join("m.shaping.svg").exists());
+    for (args, field) in [
+        (vec!["--learn", "0"], "learn"),
+        (vec!["--learn", "4"], "learn"),
+        (vec!["--target", "2"], "target"),
+    ] {
+        let mut all = vec!["shaping", s, "-q"];
+        all.extend(args);
+        let o = speckle(dir.path(), &all);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(field), "{}", stderr(&o));
+    }
+}

@@ -6,6 +6,8 @@
 //!   Fig. 11), against diffusion theory (Eq. 39);
 //! - [`plot`]: its figure, an SVG drawn with `plotters`;
 //! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
+//! - [`shaping`]: dynamic wavefront shaping on sampled transmission-matrix sequences (Bar et
+//!   al. 2023, Fig. 10);
 //! - [`examples`]: the embedded study files of both panels of Fig. 11.
 //!
 //! Design decision: a study is a library, not a command: its schema, validation, band
@@ -22,6 +24,7 @@ pub mod curves;
 pub mod examples;
 pub mod memory;
 pub mod plot;
+pub mod shaping;
 
 /// Errors of a study.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -7,10 +7,39 @@ use super::*;
 use crate::error;
 use speckle::estimators::render_field_sequence;
 use speckle::scene::SceneError;
+use speckle::scene::build::motion::MotionSettings;
 use speckle::scene::npy::{encode_c16, encode_f8};
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
+    let motion = checked_motion(&p, &run, "field-sequence")?;
+    let (r, nt) = (p.render.realizations, motion.lags.len());
+    // One PNG frame per time of each image that `speckle fields` would write.
+    let (images, _) = p.pngs(Command::Fields, r).map_err(in_scene(&p))?;
+    let frames = images.saturating_mul(nt);
+    if frames > speckle::scene::cost::MAX_PNG_FILES {
+        return Err(p
+            .in_document(SceneError::InvalidInput {
+                field: "output.png_realizations".into(),
+                reason: format!(
+                    "this would write {frames} PNG frames, more than the limit of {}",
+                    speckle::scene::cost::MAX_PNG_FILES
+                ),
+            })
+            .into());
+    }
+    let staged = plan(&p, estimate(&p, Command::Fields), run)?;
+    let (est, wall) = render(&p, &run, &motion)?;
+    write(&p, staged, &est, &motion.lags, wall)
+}
+
+/// The `[motion]` table of a command that renders field sequences (`command` names it in
+/// messages), checked: present, frame times `>= 0`, no `--shard`, the fields' size.
+pub fn checked_motion(
+    p: &Problem,
+    run: &RunOptions,
+    command: &str,
+) -> anyhow::Result<MotionSettings> {
     let refuse = |field: &str, reason: String| {
         p.in_document(SceneError::InvalidInput {
             field: field.into(),
@@ -20,16 +49,17 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let Some(motion) = p.motion.clone() else {
         return Err(refuse(
             "motion",
-            "`speckle field-sequence` needs a [motion] table (diffusion, drift, and the frame \
-             times as lags)"
-                .into(),
+            format!(
+                "`speckle {command}` needs a [motion] table (diffusion, drift, and the frame \
+                 times as lags)"
+            ),
         )
         .into());
     };
     if run.shard.is_some() {
         return Err(refuse(
             "shard",
-            "`speckle field-sequence` renders whole runs only (no --shard)".into(),
+            format!("`speckle {command}` renders whole runs only (no --shard)"),
         )
         .into());
     }
@@ -42,27 +72,22 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let (r, nt) = (p.render.realizations, motion.lags.len());
     p.field_rows_size(r.saturating_mul(nt), "render.realizations")
-        .map_err(in_scene(&p))?;
-    // One PNG frame per time of each image that `speckle fields` would write.
-    let (images, _) = p.pngs(Command::Fields, r).map_err(in_scene(&p))?;
-    let frames = images.saturating_mul(nt);
-    if frames > speckle::scene::cost::MAX_PNG_FILES {
-        return Err(refuse(
-            "output.png_realizations",
-            format!(
-                "this would write {frames} PNG frames, more than the limit of {}",
-                speckle::scene::cost::MAX_PNG_FILES
-            ),
-        )
-        .into());
-    }
-    let staged = plan(&p, estimate(&p, Command::Fields), run)?;
-    let opts = speckle::runs::field_options(&p);
-    let total = (r as u64).saturating_mul(opts.paths_per_realization);
-    let (est, wall) = run.timed(&p, total, "paths", error::estimator, |pr| {
+        .map_err(in_scene(p))?;
+    Ok(motion)
+}
+
+/// Renders the field sequence of `p` at the times of `motion` (checked by
+/// [`checked_motion`]), with progress; returns it and the wall time.
+pub fn render(
+    p: &Problem,
+    run: &RunOptions,
+    motion: &MotionSettings,
+) -> anyhow::Result<(speckle::estimators::FieldSequence, f64)> {
+    let opts = speckle::runs::field_options(p);
+    let total = (p.render.realizations as u64).saturating_mul(opts.paths_per_realization);
+    run.timed(p, total, "paths", error::estimator, |pr| {
         render_field_sequence(&p.scene, &motion.model, &motion.lags, &opts, pr)
-    })?;
-    write(&p, staged, &est, &motion.lags, wall)
+    })
 }
 
 fn write(

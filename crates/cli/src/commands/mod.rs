@@ -15,6 +15,7 @@ pub mod mean;
 pub mod memory_spectrum;
 pub mod merge;
 pub mod mie;
+pub mod shaping;
 pub mod single;
 pub mod wave;
 
