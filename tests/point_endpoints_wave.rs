@@ -66,7 +66,7 @@ fn compare(
     let means = scene.means().unwrap();
     let j = scene.len();
     let (mut worst_cov, mut worst_diag, mut worst_mean): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    for a in 0..j {
+    for (a, &mean_a) in means.iter().enumerate() {
         for b in a..j {
             let (vm, sm) = mc.total.get(a, b);
             let (vw, sw) = wave.covariance.get(a, b);
@@ -82,7 +82,7 @@ fn compare(
             worst_cov = worst_cov.max(za);
         }
         let zm = z(
-            means[a],
+            mean_a,
             Complex64::new(0.0, 0.0),
             wave.mean[a],
             wave.mean_std_error[a],

@@ -311,7 +311,16 @@ fn shaping_writes_its_curves_and_names_bad_settings() {
     let s = scene.to_str().unwrap();
     let o = speckle(
         dir.path(),
-        &["shaping", s, "--learn", "2", "--no-mean", "--out", "out", "-q"],
+        &[
+            "shaping",
+            s,
+            "--learn",
+            "2",
+            "--no-mean",
+            "--out",
+            "out",
+            "-q",
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let out = dir.path().join("out");

@@ -30,6 +30,9 @@ use std::f64::consts::TAU;
 /// Groups of realizations for the jackknife.
 const GROUPS: usize = 32;
 
+/// A statistic of the realizations that a predicate keeps (for the jackknife).
+type Statistic<'a> = &'a dyn Fn(&dyn Fn(usize) -> bool) -> f64;
+
 /// The result of [`shape`]: tables are `R x T` (realization-major) over the recording frames.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Shaping {
@@ -151,7 +154,7 @@ pub fn shape(
     let groups: Vec<std::ops::Range<usize>> = (0..GROUPS)
         .map(|g| g * r / GROUPS..(g + 1) * r / GROUPS)
         .collect();
-    let jackknife = |stat: &dyn Fn(&dyn Fn(usize) -> bool) -> f64| -> (f64, f64) {
+    let jackknife = |stat: Statistic| -> (f64, f64) {
         let all = stat(&|_| true);
         let loo: Vec<f64> = groups.iter().map(|g| stat(&|i| !g.contains(&i))).collect();
         let k = GROUPS as f64;
