@@ -6,8 +6,10 @@
 //!
 //! Source and sensor are isotropic points on the face, as in the authors' example: first
 //! vertices are sampled around them (Build 3 of issue 12), so the estimator has finite variance
-//! there. MCX launches a pencil beam at the source point and detects photons at the sensor
-//! point; at 5 transport mean free paths the normalised curves agree within our resolution.
+//! there. The authors' curve corresponds to these isotropic point endpoints: MCX-CL run by
+//! `validation/mcx/dcs.py` with an isotropic source and a fluence-weighted detector agrees with
+//! it and with us, while a pencil beam with a flux detector gives a different measurement
+//! (`g1(50 us)` lower by 0.036: deeper first scattering, longer detected paths).
 //!
 //! - `mcx_g1_is_reproduced` (CI): `|g1(t)| = |C(t)| / C(0)` from 16 independent renders of
 //!   60 000 paths, its standard error by the jackknife over the renders (the ratio's errors are
