@@ -8,9 +8,12 @@ indices are both 0 mod 3 form rods along y whose scatterers diffuse with D = 1e-
 is static; source at (-0.25, 0, 0) cm and sensor at (+0.25, 0, 0) cm on the face z = 0;
 g1(t) for t = 0 .. 50 us in 1 us steps.
 
-- MCX-CL (installed as by compare.py, see mcxenv.py): a pencil beam along +z at the source, a
-  disk detector of radius `--radii` at the sensor, detected photons' momentum transfer per
-  medium; per photon `exp(-2 k^2 D t Y_rods)`, g1 the weighted mean normalised at t = 0.
+- MCX-CL (installed as by compare.py, see mcxenv.py): a pencil beam along +z or an isotropic
+  point at the source (`--sources`), a disk detector at the sensor (photons selected by exit
+  position within each of `--radii`), detected photons counted as they cross the face (flux)
+  or weighted by 1 / |cos| of the exit angle (fluence, as a point sensor), their momentum
+  transfer per medium Y = sum (1 - cos theta); per photon `exp(-2 k^2 D t Y_rods)`, g1 the
+  weighted mean normalised at t = 0.
 - speckle: `speckle g1` on the same voxel grid with point source and sensor on the face.
 
 Both standard errors come from the jackknife over independent runs (seeds); the time each needs
@@ -113,13 +116,15 @@ def quiet_stdout():
         os.close(saved)
 
 
-def mcx_config(a, source: str, seed: int, det_radius_vox: float) -> dict:
-    import numpy as np
+def to_grid(p):
+    """A point in cm in MCX's grid units (voxel edges, from the cube's corner)."""
+    return [(p[0] + EDGE_CM / 2) * N_VOX / EDGE_CM, (p[1] + EDGE_CM / 2) * N_VOX / EDGE_CM,
+            p[2] * N_VOX / EDGE_CM]
 
+
+def mcx_config(a, source: str, seed: int, det_radius_vox: float) -> dict:
     vox_mm = 10.0 * EDGE_CM / N_VOX
     mus_per_mm = MUS_PER_CM / 10.0
-    to_grid = lambda p: [(p[0] + EDGE_CM / 2) * N_VOX / EDGE_CM, (p[1] + EDGE_CM / 2) * N_VOX / EDGE_CM,
-                         p[2] * N_VOX / EDGE_CM]
     tend = 5e-8  # 15 m of path: every photon leaves the lossless cube long before
     return {
         "nphoton": int(a.photons),
@@ -160,14 +165,14 @@ def run_mcx(a, source: str) -> dict:
     radii_vox = [r / vox_mm for r in a.radii]
     k = 2 * np.pi / WAVELENGTH_CM
     rate = 2 * k * k * D_RODS * np.asarray(LAGS)  # per unit of Y = sum (1 - cos theta)
-    det = np.array([(SENSOR_CM[0] + EDGE_CM / 2) * N_VOX, (SENSOR_CM[1] + EDGE_CM / 2) * N_VOX, 0.0])
+    det = np.array(to_grid(SENSOR_CM))
     # Detected photons count as they cross the face ("flux", as MCX's detectors), or weighted
     # by 1 / |cos| of their exit angle ("fluence": the radiance integrated over the inward
     # hemisphere, as a point sensor on the face; a heavier-tailed estimate).
     variants = [(wt, rmm) for wt in ("flux", "fluence") for rmm in a.radii]
     sums = {v: [] for v in variants}
     counts = {v: 0 for v in variants}
-    kernel_s, process_s, mom_per_scatter = 0.0, 0.0, []
+    kernel_s, process_s, mom_per_scatter, per_run = 0.0, 0.0, [], []
     for r in range(a.runs):
         cfg = mcx_config(a, source, a.seed + r, max(radii_vox))
         t = time.perf_counter()
@@ -175,6 +180,7 @@ def run_mcx(a, source: str) -> dict:
             res = pmcxcl.run(cfg)
         process_s += time.perf_counter() - t
         kernel_s += res["stat"]["runtime"] / 1000.0
+        per_run.append(res["stat"]["runtime"] / 1000.0)
         d = np.asarray(res["detp"], dtype=np.float32)
         if d.ndim != 2 or d.shape[0] != 14:
             raise SystemExit(f"unexpected detp shape {d.shape}")
@@ -198,6 +204,7 @@ def run_mcx(a, source: str) -> dict:
         "photons_per_run": int(a.photons),
         "runs": a.runs,
         "kernel_s": kernel_s,
+        "kernel_s_per_run": per_run,
         "process_s": process_s,
         "device": ", ".join(d["name"] for d in pmcxcl.gpuinfo()),
         "mom_per_scatter": float(np.mean(mom_per_scatter)),
@@ -257,7 +264,7 @@ def run_speckle(a) -> dict:
     import numpy as np
 
     exe = speckle_binary(a.speckle, "ci")
-    groups, render_s, process_s, threads = [], 0.0, 0.0, None
+    groups, render_s, process_s, threads, per_run = [], 0.0, 0.0, None, []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         # The grid: one voxel through y suffices (the rods run along y).
@@ -276,13 +283,14 @@ def run_speckle(a) -> dict:
                 raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
             meta = json.loads((out / "mcx_rods.g1.json").read_text())
             render_s += meta["render"]["wall_time_s"]
+            per_run.append(meta["render"]["wall_time_s"])
             threads = meta["render"]["threads"]
             groups.append(np.load(out / "mcx_rods.correlation.npy")[0])
             print(f"  speckle render {r + 1}/{a.renders}: {meta['render']['wall_time_s']:.2f} s",
                   file=sys.stderr)
     g1, se = jackknife(groups)
     return {"paths_per_render": a.paths, "renders": a.renders, "threads": threads,
-            "render_s": render_s, "process_s": process_s, "g1": g1.tolist(), "se": se.tolist()}
+            "render_s": render_s, "render_s_per_run": per_run, "process_s": process_s, "g1": g1.tolist(), "se": se.tolist()}
 
 
 # ------------------------------------------------------------------------------------- report
@@ -318,8 +326,6 @@ def main():
     a = parse_args()
     if not a.in_venv:
         reexec_in_venv(__file__, a.venv, sys.argv[1:])
-    import numpy as np
-
     ref = peer()
     last = len(LAGS) - 1
     res = {"args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(a).items()},
