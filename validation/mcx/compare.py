@@ -13,19 +13,13 @@ photons/s against paths/s. See README.md beside this file.
 
 import argparse
 import json
-import os
-import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parent.parent
-PACKAGES = ["pmcxcl", "intel-opencl-rt", "intel-cmplr-lib-rt", "numpy"]
-# Speed of light in mm/s (MCX's length unit is the millimetre; here one scene length unit).
-C_MM_PER_S = 299_792_458_000.0
+from mcxenv import C_MM_PER_S, DEFAULT_VENV, IN_VENV, reexec_in_venv, speckle_binary
 
 
 def parse_args():
@@ -39,54 +33,14 @@ def parse_args():
     p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
     p.add_argument("--voxel", type=float, default=1.0, help="MCX voxel edge (length units)")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--venv", type=Path, default=REPO / "target" / "mcx-venv",
+    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
                    help="virtual environment for pmcxcl and the OpenCL runtime")
     p.add_argument("--speckle", type=Path, default=None,
                    help="the speckle binary (default: build target/release/speckle with cargo)")
     p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
     p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
-    p.add_argument("--in-venv", action="store_true", help=argparse.SUPPRESS)
+    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
     return p.parse_args()
-
-
-def venv_python(venv: Path) -> Path:
-    return venv / "bin" / "python"
-
-
-def ensure_venv(venv: Path):
-    """Creates the environment and installs the packages (once)."""
-    py = venv_python(venv)
-    if not py.exists():
-        print(f"creating {venv}", file=sys.stderr)
-        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    probe = subprocess.run([str(py), "-c", "import pmcxcl, numpy"], capture_output=True)
-    if probe.returncode != 0:
-        print(f"installing {' '.join(PACKAGES)} into {venv}", file=sys.stderr)
-        subprocess.run([str(py), "-m", "pip", "install", "-q", *PACKAGES], check=True)
-
-
-def opencl_env(venv: Path) -> dict:
-    """The environment under which the ICD loader bundled with pmcxcl finds Intel's CPU runtime.
-
-    The ICD file that `intel-opencl-rt` ships names a build-time path
-    (/opt/anaconda1anaconda2anaconda3/lib/libintelocl.so), so a vendors directory is written
-    here that names the library inside the environment; its own libraries (TBB and the
-    compiler runtime) are found through LD_LIBRARY_PATH.
-    """
-    lib = venv / "lib"
-    so = lib / "libintelocl.so"
-    if not so.exists():
-        candidates = sorted(lib.glob("libintelocl.so*"))
-        if not candidates:
-            raise SystemExit(f"no libintelocl.so in {lib}: is intel-opencl-rt installed?")
-        so = candidates[0]
-    icd = venv / "icd"
-    icd.mkdir(exist_ok=True)
-    (icd / "intel-cpu.icd").write_text(f"{so}\n")
-    env = dict(os.environ)
-    env["OCL_ICD_VENDORS"] = str(icd)
-    env["LD_LIBRARY_PATH"] = f"{lib}:{env.get('LD_LIBRARY_PATH', '')}".rstrip(":")
-    return env
 
 
 def scene_toml(a) -> str:
@@ -118,10 +72,7 @@ seed = {a.seed}
 
 
 def run_speckle(a) -> dict:
-    exe = a.speckle
-    if exe is None:
-        subprocess.run(["cargo", "build", "--release", "-p", "speckle-cli"], cwd=REPO, check=True)
-        exe = REPO / "target" / "release" / "speckle"
+    exe = speckle_binary(a.speckle, "release")
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "mcx_compare.toml"
         scene.write_text(scene_toml(a))
@@ -186,10 +137,7 @@ def run_mcx(a) -> dict:
 def main():
     a = parse_args()
     if not a.in_venv and not a.skip_mcx:
-        ensure_venv(a.venv)
-        env = opencl_env(a.venv)
-        argv = [str(venv_python(a.venv)), str(Path(__file__).resolve()), "--in-venv", *sys.argv[1:]]
-        sys.exit(subprocess.run(argv, env=env).returncode)
+        reexec_in_venv(__file__, a.venv, sys.argv[1:])
     ours = None if a.skip_speckle else run_speckle(a)
     mcx = None if a.skip_mcx else run_mcx(a)
     sx, sy, sz = a.size
