@@ -249,7 +249,8 @@ pub enum SourceSpec {
     },
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves weighted by
     /// a unit-integral vMF mask about `axis`, focused at `focus` (which may lie inside the
-    /// medium). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    /// medium). The exact wave solver and the covariance, intensity, single-scattering and field
+    /// renders take it; the mean and `g1` refuse it for now.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],
@@ -294,7 +295,8 @@ pub enum SensorSpec {
     },
     /// A lens of Gaussian (vMF) apodization focused at `focus` (which may lie inside the medium),
     /// reading the far-field amplitudes it collects weighted by its unit-integral mask about
-    /// `axis` (Bar et al. 2020, Eqs. 9-10). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    /// `axis` (Bar et al. 2020, Eqs. 9-10). The exact wave solver and the covariance, intensity,
+    /// single-scattering and field renders take it; the mean and `g1` refuse it for now.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],
