@@ -28,7 +28,7 @@
 use speckle::endpoints::{GaussianBeam, mean_field};
 use speckle::estimators::{NoProgress, Pair, Scene, Sensor, Source};
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::phase::{Complex64, Dimension, Phase};
+use speckle::phase::{Dimension, Phase};
 use speckle::wave::{WaveOptions, render_wave};
 
 struct Case {
