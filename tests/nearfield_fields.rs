@@ -12,7 +12,8 @@
 //! Scenes (forward and reversed paths, so coherent backscattering is in both):
 //! - 3D: a 6 x 6 x 4 box, mean free path 3, albedo 0.9, a lobed vMF amplitude (forward lobe,
 //!   isotropic floor, back lobe), so both the exact lobe connections and the convolution
-//!   approximation of Eqs. 31-32 are exercised; two Gaussian sources (`gamma = 50`) focused
+//!   approximation of Eqs. 31-32 are exercised; two Gaussian sources (`gamma = 16`, the
+//!   paper's aperture width 0.25) focused
 //!   inside the box 0.6 apart laterally (a focal shift), one along the depth axis and one
 //!   tilted; two transmission sensors focused behind the box at the two foci shifted along the
 //!   axis (the memory-effect partners), a reflection sensor focused at the first focus looking
@@ -29,11 +30,10 @@
 //! forward-only render by more than 5 combined SE, so that a sampler without the reversed
 //! paths would fail.
 //!
-//! The 3D concentration is 50, not the paper's 16: at `gamma = 16` the covariance render's
-//! two-beam single scattering (the convolution approximation, B = 1) is not usable in this box
-//! (values of 1e17 to 1e168 near the ring `|x - f| ~ (gamma + gamma_m) / k` about a focus,
-//! where `beta_o` of Eq. 32 nears its branch point). Fields and render agree there too, since
-//! they share the connection, but the standard errors are then meaningless.
+//! At `gamma = 16` the two-beam single scattering passes close to the branch point of the
+//! convolution approximation (the ring `|x - f| ~ (gamma + gamma_m) / k` about a focus); before
+//! its bound (`gaussian::near::convolve`) this scene gave single-scattering intensities of 1e17
+//! to 1e168 in both renders, so the standard errors were meaningless.
 //!
 //! Measured (these seeds): largest deviation 1.53 combined SE (3D) and 2.73 (flatland) over 64
 //! statistics each; backscattering z = 8.5 and 8.4 over forward-only. About 20 s for both in
@@ -70,7 +70,7 @@ fn three_d() -> Case {
     let phase = Phase::Vmf(Arc::new(
         VmfMixture::new(vec![(0.0, 0.5), (4.0, 1.0), (-2.0, 0.3)]).unwrap(),
     ));
-    let (g, z) = (50.0, DVec3::Z);
+    let (g, z) = (16.0, DVec3::Z);
     let f0 = DVec3::new(0.0, 0.0, -0.5);
     let f1 = f0 + DVec3::new(0.6, 0.0, 0.0);
     let sources = vec![
@@ -85,7 +85,7 @@ fn three_d() -> Case {
     ];
     let scene = Scene::new(medium, phase, 1.0, sources, sensors, Pair::all(2, 4)).unwrap();
     Case {
-        name: "3D 6x6x4, mfp 3, vMF lobes, gamma 50",
+        name: "3D 6x6x4, mfp 3, vMF lobes, gamma 16",
         scene,
         back: 2,
         realizations: 5000,
