@@ -125,3 +125,29 @@ fn fields_add_the_near_field_mean() {
     assert_eq!(mean, alone);
     assert!(mean.iter().all(|m| m.is_finite()));
 }
+
+/// A `gaussian_grid` sensor image: `speckle fields` writes one PNG per realization and source,
+/// with the near-field mean added (the scene's default).
+#[test]
+fn gaussian_grid_fields_draw_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = include_str!("../../fuzz/corpus/gaussian_grid.toml");
+    let scene = write(dir.path(), "g.toml", text);
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["fields", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // R = 4 realizations of 1 source x 12 sensors, complex.
+    let f = npy_f64(&out.join("gaussian_grid.fields.npy"));
+    assert_eq!(f.len(), 2 * 4 * 12);
+    assert!(f.iter().all(|x| x.is_finite()));
+    let mean = npy_f64(&out.join("gaussian_grid.mean.npy"));
+    assert_eq!(mean.len(), 2 * 12);
+    assert!(mean.iter().all(|x| x.is_finite()));
+    for r in 0..4 {
+        let png = std::fs::read(out.join(format!("gaussian_grid.r{r}.s0.png"))).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+    }
+    let sidecar = std::fs::read_to_string(out.join("gaussian_grid.fields.json")).unwrap();
+    assert!(sidecar.contains("\"gaussian_grid\""), "{sidecar}");
+}

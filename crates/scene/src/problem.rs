@@ -85,7 +85,13 @@ fn check_extents(
             };
             let e = info.entry;
             let key = match (what, file.sensors.get(e)) {
-                ("sensors", Some(SensorSpec::PointGrid { origin, step_x, .. })) => {
+                (
+                    "sensors",
+                    Some(
+                        SensorSpec::PointGrid { origin, step_x, .. }
+                        | SensorSpec::GaussianGrid { origin, step_x, .. },
+                    ),
+                ) => {
                     if far(*origin) {
                         "origin"
                     } else if far(*step_x)

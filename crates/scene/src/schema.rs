@@ -356,6 +356,31 @@ pub enum SensorSpec {
         /// Number of rows.
         ny: usize,
     },
+    /// An `ny x nx` image of Gaussian lenses (as `gaussian_beam` sensors) focused at
+    /// `origin + ix step_x + iy step_y` (foci may lie inside the medium), all viewing along
+    /// `axis` with the same aperture. Row-major, `iy` slow.
+    GaussianGrid {
+        /// The first focus.
+        origin: [f64; 3],
+        /// Step between columns.
+        step_x: [f64; 3],
+        /// Step between rows.
+        step_y: [f64; 3],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+        /// The viewing direction: light travels along it into the sensors (default `+z`; `+y`
+        /// in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// The mask's vMF concentration `gamma >= 0`; give this or `numerical_aperture`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        concentration: Option<f64>,
+        /// The numerical aperture in `(0, 1]`, `gamma = 4 / NA^2`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
+    },
 }
 
 /// `[render]`: estimator settings.
