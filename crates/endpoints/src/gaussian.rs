@@ -293,7 +293,12 @@ pub(crate) mod near {
     /// construction with the circle integral, `mu' = (gamma / beta_o) mu`, scale
     /// `ln int a(psi) e^(gamma w_o . psi) dpsi - mu' . w_o`. `None` at the branch point
     /// `beta_o ~ 0`.
-    fn convolve(a: &ComplexVmf, three: bool, gamma: f64, w_o: DVec3) -> Option<ComplexVmf> {
+    fn convolve(
+        a: &ComplexVmf,
+        three: bool,
+        gamma: f64,
+        w_o: DVec3,
+    ) -> Option<Result<ComplexVmf, Complex64>> {
         let c = linearised(a, three, gamma, w_o)?;
         // Near the branch point (`beta_o` small next to `|mu|`: for a point about
         // `(gamma_a + gamma) / k` off the focus, where the beam is weak) the linearised parameter
@@ -305,7 +310,12 @@ pub(crate) mod near {
         let re_norm = |v: &ComplexVmf| v.mu.iter().map(|m| m.re * m.re).sum::<f64>().sqrt();
         let measure = if three { 4.0 * PI } else { TAU };
         let bound = a.log_scale.re + measure.ln() + re_norm(a) + gamma.abs();
-        (c.log_scale.re + re_norm(&c) <= bound).then_some(c)
+        // Refused: the exact value at `w_o`, where the linearisation is exact.
+        Some(if c.log_scale.re + re_norm(&c) <= bound {
+            Ok(c)
+        } else {
+            Err(c.ln_eval(w_o))
+        })
     }
 
     /// The linearisation of [`convolve`] (Eqs. 31-32), without its bound.
@@ -353,11 +363,12 @@ pub(crate) mod near {
                     return (l + field_s() + field_v()).exp();
                 }
                 match convolve(a_s, three, gamma, view) {
-                    Some(c) => {
+                    Some(Ok(c)) => {
                         // c is a vMF of v^ = -w': negate its parameter.
                         let c = ComplexVmf::new(c.log_scale, c.mu.map(|m| -m));
                         (l + ln_integral(&a_v.mul(&c), three)).exp()
                     }
+                    Some(Err(at)) => (l + at + field_v()).exp(),
                     None => {
                         let at = ln_integral(&a_s.mul(&ComplexVmf::real(0.0, gamma, view)), three);
                         (l + at + field_v()).exp()
