@@ -6,13 +6,18 @@
 //! - `nearfield/covariance/{far,gaussian}/<phase>/J=<pairs>`: `render_covariance` of 2 sources
 //!   x 8 sensors (`J = 16`), forward and reversed paths, 4096 paths, for an isotropic amplitude
 //!   (one vMF lobe) and a 3-lobe vMF amplitude; throughput in paths.
+//! - `nearfield/fields/{far,gaussian}/<phase>/J=<pairs>`: `render_fields` (Sec. 7) of 2 sources
+//!   x 8 and x 64 sensors (`J = 16, 128`), 4 realizations of 1024 paths, without the mean;
+//!   throughput in paths. Fields cost `O(S + V)` connections and `O(J)` pair updates per
+//!   vertex, so the ratio to the far field is that of the connections where `J` is small.
 //!
 //! A 20 x 20 x 8 wavelength slab of mean free path 4; fixed seeds. Run with
 //! `cargo bench --bench nearfield` (per core: `RAYON_NUM_THREADS=1`).
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use speckle::endpoints::GaussianBeam;
 use speckle::estimators::{
-    Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
+    Coherence, CovarianceOptions, FieldOptions, NoProgress, Pair, Scene, Sensor, Source,
+    render_covariance, render_fields,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::phase::Phase;
@@ -21,6 +26,11 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 fn scene(gaussian: bool, phase: Phase) -> Scene<HomogeneousBox, Phase> {
+    scene_with(gaussian, phase, 8)
+}
+
+/// 2 sources and `nv` sensors (foci half a wavelength apart).
+fn scene_with(gaussian: bool, phase: Phase, nv: usize) -> Scene<HomogeneousBox, Phase> {
     let b = Aabb::centered(DVec3::ZERO, DVec3::new(20.0, 20.0, 8.0)).unwrap();
     let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
     let beam = |f: DVec3| GaussianBeam::new("bench", f, DVec3::Z, 16.0).unwrap();
@@ -33,7 +43,7 @@ fn scene(gaussian: bool, phase: Phase) -> Scene<HomogeneousBox, Phase> {
             }
         })
         .collect();
-    let sensors: Vec<Sensor> = (0..8)
+    let sensors: Vec<Sensor> = (0..nv)
         .map(|i| {
             if gaussian {
                 Sensor::GaussianBeam(beam(DVec3::new(0.5 * i as f64, 0.0, -4.0)))
@@ -42,7 +52,7 @@ fn scene(gaussian: bool, phase: Phase) -> Scene<HomogeneousBox, Phase> {
             }
         })
         .collect();
-    Scene::new(m, phase, 1.0, sources, sensors, Pair::all(2, 8)).unwrap()
+    Scene::new(m, phase, 1.0, sources, sensors, Pair::all(2, nv)).unwrap()
 }
 
 fn covariance(c: &mut Criterion) {
@@ -53,10 +63,7 @@ fn covariance(c: &mut Criterion) {
         coherence: Coherence::ForwardAndReversed,
         ..Default::default()
     };
-    let lobed = Phase::Vmf(Arc::new(
-        VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-1.5, 0.2)]).unwrap(),
-    ));
-    for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed)] {
+    for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
         for (kind, gaussian) in [("far", false), ("gaussian", true)] {
             let s = scene(gaussian, phase.clone());
             let mut g = c.benchmark_group(format!("nearfield/covariance/{kind}/{name}"));
@@ -69,5 +76,37 @@ fn covariance(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, covariance);
+fn lobed() -> Phase {
+    Phase::Vmf(Arc::new(
+        VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-1.5, 0.2)]).unwrap(),
+    ))
+}
+
+fn fields(c: &mut Criterion) {
+    let (realizations, per) = (4, 1024);
+    let opts = FieldOptions {
+        realizations,
+        paths_per_realization: per,
+        seed: 1,
+        coherence: Coherence::ForwardAndReversed,
+        add_mean: false,
+        ..Default::default()
+    };
+    for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
+        for nv in [8, 64] {
+            for (kind, gaussian) in [("far", false), ("gaussian", true)] {
+                let s = scene_with(gaussian, phase.clone(), nv);
+                let mut g = c.benchmark_group(format!("nearfield/fields/{kind}/{name}"));
+                g.sample_size(10)
+                    .throughput(Throughput::Elements(realizations as u64 * per));
+                g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
+                    b.iter(|| black_box(render_fields(&s, &opts, &NoProgress).unwrap()))
+                });
+                g.finish();
+            }
+        }
+    }
+}
+
+criterion_group!(benches, covariance, fields);
 criterion_main!(benches);

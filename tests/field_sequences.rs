@@ -514,4 +514,19 @@ fn bad_sequence_inputs_name_the_field() {
         ..opts
     };
     assert!(err(&[0.0], &model, &none).starts_with("realizations:"));
+    // Gaussian beams: static fields take them, sequences do not yet.
+    let b = speckle::endpoints::GaussianBeam::new("source", DVec3::ZERO, DVec3::Z, 16.0).unwrap();
+    let beams = Scene::new(
+        scene.medium().clone(),
+        Phase::Isotropic,
+        1.0,
+        vec![Source::GaussianBeam(b)],
+        scene.sensors().to_vec(),
+        Pair::all(1, scene.sensors().len()),
+    )
+    .unwrap();
+    let e = render_field_sequence(&beams, &model, &[0.0], &opts, &NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("sources[0]: gaussian_beam"), "{e}");
 }

@@ -1,7 +1,6 @@
-//! End to end: the path-traced commands render scenes with Gaussian-beam sources and sensors
-//! (near-field connections, Bar et al. 2020); the speckle mean written beside them is NaN for
-//! beam pairs, with a warning; the commands that do not take beams exit with
-//! code 2 naming the endpoint.
+//! End to end: the path-traced commands (covariance, intensity, fields) render scenes with
+//! Gaussian-beam sources and sensors (near-field connections, Bar et al. 2020), and `mean` and
+//! the means written beside them are the closed-form near-field means; `g1` exits with code 2.
 
 mod common;
 use common::*;
@@ -16,14 +15,7 @@ fn covariance_and_intensity_render_gaussian_beams() {
     for command in ["covariance", "intensity"] {
         let o = speckle(dir.path(), &[command, s, "--out", "out", "-q", "--no-png"]);
         assert!(o.status.success(), "{command}: {}", stderr(&o));
-        if command == "covariance" {
-            // The NaN means are announced.
-            let e = stderr(&o);
-            assert!(
-                e.contains("gaussian_beam endpoint is not implemented"),
-                "{e}"
-            );
-        }
+        assert!(!stderr(&o).contains("NaN"), "{}", stderr(&o));
     }
     let out = dir.path().join("out");
     let cov = npy_f64(&out.join("gaussian_beams_isotropic.cov.npy"));
@@ -38,15 +30,124 @@ fn covariance_and_intensity_render_gaussian_beams() {
         );
         assert!(intensity[j] > 0.0 && intensity[j].is_finite());
     }
+    // The near-field means (beam to beam, point to beam): finite, and those of `speckle mean`.
     let mean = npy_f64(&out.join("gaussian_beams_isotropic.mean.npy"));
-    assert!(mean.iter().all(|m| m.is_nan()), "{mean:?}");
-    for command in ["fields", "mean", "g1"] {
-        let o = speckle(dir.path(), &[command, s, "-q"]);
-        assert_eq!(o.status.code(), Some(2), "{command}: {}", stderr(&o));
-        let e = stderr(&o);
-        assert!(
-            e.contains("sources[0]") || e.contains("sensors[0]") || e.contains("motion"),
-            "{command}: {e}"
-        );
+    assert!(
+        mean.iter().all(|m| m.is_finite()) && mean.iter().any(|m| *m != 0.0),
+        "{mean:?}"
+    );
+    let o = speckle(dir.path(), &["mean", s, "--out", "m"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let alone = npy_f64(
+        &dir.path()
+            .join("m")
+            .join("gaussian_beams_isotropic.mean.npy"),
+    );
+    assert_eq!(alone, mean);
+    let o = speckle(dir.path(), &["g1", s, "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+#[test]
+fn fields_render_gaussian_beams() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "g.toml", SCENE);
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["fields", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // R = 8 realizations (the default) of 2 sources x 1 sensor, complex: 32 values.
+    let f = npy_f64(&out.join("gaussian_beams_isotropic.fields.npy"));
+    assert_eq!(f.len(), 2 * 8 * 2);
+    assert!(f.iter().all(|x| x.is_finite()) && f.iter().any(|x| *x != 0.0));
+    // Images are drawn of sensor grids only; there is no grid of Gaussian sensors yet.
+    assert!(!out.join("gaussian_beams_isotropic.r0.s0.png").exists());
+    // On 1 and 3 threads: bitwise the same fields.
+    let one = speckle(
+        dir.path(),
+        &[
+            "fields",
+            s,
+            "--out",
+            "o1",
+            "-q",
+            "--no-png",
+            "--threads",
+            "1",
+        ],
+    );
+    let three = speckle(
+        dir.path(),
+        &[
+            "fields",
+            s,
+            "--out",
+            "o3",
+            "-q",
+            "--no-png",
+            "--threads",
+            "3",
+        ],
+    );
+    assert!(one.status.success() && three.status.success());
+    let read = |d: &str| {
+        std::fs::read(
+            dir.path()
+                .join(d)
+                .join("gaussian_beams_isotropic.fields.npy"),
+        )
+        .unwrap()
+    };
+    assert_eq!(read("o1"), read("o3"));
+    assert_eq!(
+        read("o1"),
+        std::fs::read(out.join("gaussian_beams_isotropic.fields.npy")).unwrap()
+    );
+}
+
+#[test]
+fn fields_add_the_near_field_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = SCENE.replace("add_mean = false", "add_mean = true");
+    let scene = write(dir.path(), "g.toml", &text);
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["fields", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = speckle(dir.path(), &["mean", s, "--out", "m"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let mean = npy_f64(&out.join("gaussian_beams_isotropic.mean.npy"));
+    let alone = npy_f64(
+        &dir.path()
+            .join("m")
+            .join("gaussian_beams_isotropic.mean.npy"),
+    );
+    assert_eq!(mean, alone);
+    assert!(mean.iter().all(|m| m.is_finite()));
+}
+
+/// A `gaussian_grid` sensor image: `speckle fields` writes one PNG per realization and source,
+/// with the near-field mean added (the scene's default).
+#[test]
+fn gaussian_grid_fields_draw_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = include_str!("../../fuzz/corpus/gaussian_grid.toml");
+    let scene = write(dir.path(), "g.toml", text);
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["fields", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // R = 4 realizations of 1 source x 12 sensors, complex.
+    let f = npy_f64(&out.join("gaussian_grid.fields.npy"));
+    assert_eq!(f.len(), 2 * 4 * 12);
+    assert!(f.iter().all(|x| x.is_finite()));
+    let mean = npy_f64(&out.join("gaussian_grid.mean.npy"));
+    assert_eq!(mean.len(), 2 * 12);
+    assert!(mean.iter().all(|x| x.is_finite()));
+    for r in 0..4 {
+        let png = std::fs::read(out.join(format!("gaussian_grid.r{r}.s0.png"))).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
     }
+    let sidecar = std::fs::read_to_string(out.join("gaussian_grid.fields.json")).unwrap();
+    assert!(sidecar.contains("\"gaussian_grid\""), "{sidecar}");
 }

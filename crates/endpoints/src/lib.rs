@@ -23,8 +23,9 @@
 //!   Its connection is not a leg times an amplitude: [`Endpoints::connect`] gives it its
 //!   weighted aperture at the medium point, and [`Endpoints::scatter`] and
 //!   [`Endpoints::single`] integrate it in closed form (the near-field covariance of Bar et al.
-//!   2020, Eqs. 13-18). The covariance estimators accept it ([`check_near_field`]); the field,
-//!   mean-field and temporal-correlation estimators refuse it for now ([`check_monte_carlo`]).
+//!   2020, Eqs. 13-18). The covariance and field estimators accept it ([`check_near_field`]),
+//!   and its pairs have a closed-form mean ([`mean_field`]); the temporal-correlation estimator
+//!   and field sequences refuse it for now ([`check_monte_carlo`]).
 //!
 //! A sensor is written in *source form*, as the source of the field it reads by reciprocity
 //! (the far-field sensor `v` is the plane wave along `-v`; the point sensor at `q` the point
@@ -93,8 +94,8 @@ pub enum Source {
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves
     /// `exp(i k w . (x - f))` weighted by the unit-integral vMF mask about its axis (the
     /// propagation direction through the focus `f`). The exact wave solver and the covariance
-    /// estimators support it ([`check_near_field`]); the other Monte Carlo estimators refuse it
-    /// ([`check_monte_carlo`]).
+    /// and field estimators support it ([`check_near_field`]); the other Monte Carlo estimators
+    /// refuse it ([`check_monte_carlo`]).
     GaussianBeam(GaussianBeam),
 }
 
@@ -117,7 +118,7 @@ pub enum Sensor {
     /// direction the light travels from the medium into the sensor. It reads
     /// `int m(w) e^(i k w . f) A(w) dw` of a field of outgoing far-field amplitude `A` (Eqs. 9-10);
     /// its source form is the beam with the axis reversed. Supported by the exact wave solver and
-    /// the covariance estimators ([`check_near_field`]); refused by the other Monte Carlo
+    /// the covariance and field estimators ([`check_near_field`]); refused by the other Monte Carlo
     /// estimators for now ([`check_monte_carlo`]).
     GaussianBeam(GaussianBeam),
 }
@@ -297,14 +298,15 @@ impl Kind {
     }
 }
 
-/// Why the field, mean-field and temporal-correlation estimators refuse Gaussian beams (for now).
+/// Why the temporal-correlation estimator and field sequences refuse Gaussian beams (for now).
 const GAUSSIAN_MONTE_CARLO: &str = "gaussian_beam endpoints are supported by the exact wave \
-    solver and the covariance and intensity estimators only: near-field speckle fields, mean \
-    fields and temporal correlations (Bar et al. 2020, Sec. 7) are not implemented yet";
+    solver, the covariance, intensity and field estimators and the mean only: near-field \
+    temporal correlations and field sequences of moving scatterers are not implemented yet";
 
-/// Checks that the field, mean-field and temporal-correlation estimators can connect every
+/// Checks that the temporal-correlation estimator and field sequences can connect every
 /// endpoint: an error naming `sources[j]` or `sensors[j]` for a Gaussian beam, which only the
-/// covariance estimators ([`check_near_field`]) and the exact wave solver support.
+/// covariance and field estimators ([`check_near_field`]), the mean and the exact wave solver
+/// support.
 pub fn check_monte_carlo(sources: &[Source], sensors: &[Sensor]) -> Result<(), EndpointError> {
     if let Some(j) = sources
         .iter()

@@ -324,6 +324,9 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
     progress: &dyn Progress,
 ) -> Result<FieldSequence, EstimatorError> {
     let invalid = |field: String, reason: String| EstimatorError::InvalidInput { field, reason };
+    // Static fields take Gaussian beams; sequences of moving scatterers do not yet (their
+    // reference, the spatio-temporal covariance, refuses them).
+    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
     if times.is_empty() {
         return Err(invalid("times".into(), "needs at least one time".into()));
     }

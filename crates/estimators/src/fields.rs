@@ -332,7 +332,9 @@ fn render_rows<M: Medium, P: PhaseFunction>(
     shard: Option<Shard>,
     frames: Option<&Frames>,
 ) -> Result<FieldShard, EstimatorError> {
-    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
+    // Gaussian beams connect through the covariance's closed forms (Bar et al. 2020, Sec. 7,
+    // Eqs. 43-45): the same vMF-lobe amplitudes are needed.
+    speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     if options.realizations == 0 {
         return Err(EstimatorError::InvalidInput {
             field: "realizations".into(),

@@ -120,3 +120,22 @@ def test_g1_needs_motion(tiny_file):
     with pytest.raises(speckle.SceneError) as e:
         speckle.g1(tiny_file)
     assert e.value.field == "motion"
+
+
+#: A near-field scene (Bar et al. 2020): a Gaussian beam and a 4 x 3 grid of Gaussian lenses.
+NEAR = Path(__file__).resolve().parents[3] / "crates" / "fuzz" / "corpus" / "gaussian_grid.toml"
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_near_field_fields_equal_the_command_line(speckle_bin, tmp_path, threads):
+    scene = tmp_path / "gaussian_grid.toml"
+    scene.write_text(NEAR.read_text())
+    out = tmp_path / "out"
+    cli(speckle_bin, "fields", str(scene), "--out", str(out), "-q", "--no-png")
+    cli(speckle_bin, "mean", str(scene), "--out", str(tmp_path / "m"))
+    f = speckle.fields(scene, threads=threads)
+    same(out / "gaussian_grid.fields.npy", f.fields)
+    same(out / "gaussian_grid.mean.npy", f.mean)
+    same(tmp_path / "m" / "gaussian_grid.mean.npy", speckle.mean(speckle.load(scene)).mean)
+    assert f.fields.shape == (4, 1, 12)
+    assert np.all(np.isfinite(f.mean)) and np.all(f.mean != 0)

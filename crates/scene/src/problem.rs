@@ -84,7 +84,13 @@ fn check_extents(
             };
             let e = info.entry;
             let key = match (what, file.sensors.get(e)) {
-                ("sensors", Some(SensorSpec::PointGrid { origin, step_x, .. })) => {
+                (
+                    "sensors",
+                    Some(
+                        SensorSpec::PointGrid { origin, step_x, .. }
+                        | SensorSpec::GaussianGrid { origin, step_x, .. },
+                    ),
+                ) => {
                     if far(*origin) {
                         "origin"
                     } else if far(*step_x)
@@ -410,35 +416,6 @@ impl Problem {
         pairs: Range<usize>,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<(Vec<Complex64>, Option<String>)>, SceneError> {
-        let s = &self.scene;
-        let beam = |p: &Pair| {
-            matches!(
-                s.sources()[p.source],
-                speckle_endpoints::Source::GaussianBeam(_)
-            ) || matches!(
-                s.sensors()[p.sensor],
-                speckle_endpoints::Sensor::GaussianBeam(_)
-            )
-        };
-        if s.pairs()[pairs.clone()].iter().any(beam) {
-            // The coherent field of a focused beam through the medium is not implemented: its
-            // pairs' means are NaN, the others' computed one by one.
-            let mut means = Vec::with_capacity(pairs.len());
-            for p in &s.pairs()[pairs] {
-                if cancelled() {
-                    return Ok(None);
-                }
-                means.push(if beam(p) {
-                    Complex64::new(f64::NAN, f64::NAN)
-                } else {
-                    s.mean(*p)?
-                });
-            }
-            let warning = "the speckle mean of pairs with a gaussian_beam endpoint is not \
-                           implemented; it is written as NaN (the covariance does not depend on it)"
-                .to_string();
-            return Ok(Some((means, Some(warning))));
-        }
         match self.scene.means_of(pairs.clone(), cancelled) {
             Ok(None) => Ok(None),
             Ok(Some(m)) => Ok(Some((m, None))),

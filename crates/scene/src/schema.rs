@@ -249,7 +249,8 @@ pub enum SourceSpec {
     },
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves weighted by
     /// a unit-integral vMF mask about `axis`, focused at `focus` (which may lie inside the
-    /// medium). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    /// medium). The exact wave solver and the covariance, intensity, single-scattering and field
+    /// renders take it; the mean and `g1` refuse it for now.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],
@@ -294,7 +295,8 @@ pub enum SensorSpec {
     },
     /// A lens of Gaussian (vMF) apodization focused at `focus` (which may lie inside the medium),
     /// reading the far-field amplitudes it collects weighted by its unit-integral mask about
-    /// `axis` (Bar et al. 2020, Eqs. 9-10). Exact wave solver only for now (the Monte Carlo estimators refuse it).
+    /// `axis` (Bar et al. 2020, Eqs. 9-10). The exact wave solver and the covariance, intensity,
+    /// single-scattering and field renders take it; the mean and `g1` refuse it for now.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],
@@ -353,6 +355,31 @@ pub enum SensorSpec {
         nx: usize,
         /// Number of rows.
         ny: usize,
+    },
+    /// An `ny x nx` image of Gaussian lenses (as `gaussian_beam` sensors) focused at
+    /// `origin + ix step_x + iy step_y` (foci may lie inside the medium), all viewing along
+    /// `axis` with the same aperture. Row-major, `iy` slow.
+    GaussianGrid {
+        /// The first focus.
+        origin: [f64; 3],
+        /// Step between columns.
+        step_x: [f64; 3],
+        /// Step between rows.
+        step_y: [f64; 3],
+        /// Number of columns.
+        nx: usize,
+        /// Number of rows.
+        ny: usize,
+        /// The viewing direction: light travels along it into the sensors (default `+z`; `+y`
+        /// in flatland).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// The mask's vMF concentration `gamma >= 0`; give this or `numerical_aperture`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        concentration: Option<f64>,
+        /// The numerical aperture in `(0, 1]`, `gamma = 4 / NA^2`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
     },
 }
 

@@ -292,6 +292,50 @@ fn lerp(range: [f64; 2], i: usize, n: usize) -> f64 {
     }
 }
 
+/// The points `origin + ix step_x + iy step_y` of the grid of `sensors[i]`, row-major (`iy`
+/// slow), as `(ix, iy, point)`: the counts checked, the steps non-zero where used, and the
+/// farthest points finite (a step times a count may overflow); errors name the key.
+fn grid_points(
+    i: usize,
+    origin: [f64; 3],
+    step_x: [f64; 3],
+    step_y: [f64; 3],
+    nx: usize,
+    ny: usize,
+    dim: Dimension,
+) -> Result<Vec<(usize, usize, DVec3)>, SceneError> {
+    let f = |k: &str| format!("sensors[{i}].{k}");
+    let o = position(&f("origin"), origin, dim)?;
+    let sx = position(&f("step_x"), step_x, dim)?;
+    let sy = position(&f("step_y"), step_y, dim)?;
+    grid_counts(&format!("sensors[{i}]"), nx, ny)?;
+    if nx > 1 && sx == DVec3::ZERO {
+        return Err(invalid(f("step_x"), "must be non-zero when nx > 1"));
+    }
+    if ny > 1 && sy == DVec3::ZERO {
+        return Err(invalid(f("step_y"), "must be non-zero when ny > 1"));
+    }
+    let (last_x, last_y) = (sx * (nx - 1) as f64, sy * (ny - 1) as f64);
+    for (key, v) in [
+        ("step_x", last_x),
+        ("step_y", last_y),
+        ("origin", o + last_x + last_y),
+    ] {
+        if !v.is_finite() {
+            return Err(invalid(
+                f(key),
+                format!(
+                    "the grid's points overflow (step times count is not finite: {:?})",
+                    v.to_array()
+                ),
+            ));
+        }
+    }
+    Ok((0..ny)
+        .flat_map(|iy| (0..nx).map(move |ix| (ix, iy, o + sx * ix as f64 + sy * iy as f64)))
+        .collect())
+}
+
 fn grid_counts(field: &str, nx: usize, ny: usize) -> Result<(), SceneError> {
     if nx == 0 {
         return Err(invalid(format!("{field}.nx"), "must be >= 1 (got 0)"));
@@ -312,8 +356,8 @@ fn grid_counts(field: &str, nx: usize, ny: usize) -> Result<(), SceneError> {
 pub type BuiltSensors = (Vec<Sensor>, Vec<EndpointInfo>, Option<SensorGrid>);
 
 /// Expands `[[sensors]]` around the medium's box `b`, filling in the defaults of generator
-/// entries. The sensors form an image when they are one `far_grid` or `point_grid` entry with
-/// `nx, ny > 1`.
+/// entries. The sensors form an image when they are one `far_grid`, `point_grid` or
+/// `gaussian_grid` entry with `nx, ny > 1`.
 pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors, SceneError> {
     let dim = b.dimension();
     if specs.is_empty() {
@@ -441,44 +485,40 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
                 nx,
                 ny,
             } => {
-                let o = position(&f("origin"), *origin, dim)?;
-                let sx = position(&f("step_x"), *step_x, dim)?;
-                let sy = position(&f("step_y"), *step_y, dim)?;
-                grid_counts(&e, *nx, *ny)?;
-                if *nx > 1 && sx == DVec3::ZERO {
-                    return Err(invalid(f("step_x"), "must be non-zero when nx > 1"));
+                for (ix, iy, p) in grid_points(i, *origin, *step_x, *step_y, *nx, *ny, dim)? {
+                    out.push(Sensor::Point { position: p });
+                    desc.push(EndpointInfo {
+                        ix: Some(ix),
+                        iy: Some(iy),
+                        ..EndpointInfo::point(i, p)
+                    });
                 }
-                if *ny > 1 && sy == DVec3::ZERO {
-                    return Err(invalid(f("step_y"), "must be non-zero when ny > 1"));
-                }
-                // The farthest points must be finite (a step times a count may overflow).
-                let (last_x, last_y) = (sx * (*nx - 1) as f64, sy * (*ny - 1) as f64);
-                for (key, v) in [
-                    ("step_x", last_x),
-                    ("step_y", last_y),
-                    ("origin", o + last_x + last_y),
-                ] {
-                    if !v.is_finite() {
-                        return Err(invalid(
-                            f(key),
-                            format!(
-                                "the grid's points overflow (step times count is not finite: \
-                                 {:?})",
-                                v.to_array()
-                            ),
-                        ));
-                    }
-                }
-                for iy in 0..*ny {
-                    for ix in 0..*nx {
-                        let p = o + sx * ix as f64 + sy * iy as f64;
-                        out.push(Sensor::Point { position: p });
-                        desc.push(EndpointInfo {
-                            ix: Some(ix),
-                            iy: Some(iy),
-                            ..EndpointInfo::point(i, p)
-                        });
-                    }
+            }
+            SensorSpec::GaussianGrid {
+                origin,
+                step_x,
+                step_y,
+                nx,
+                ny,
+                axis,
+                concentration,
+                numerical_aperture,
+            } => {
+                for (ix, iy, p) in grid_points(i, *origin, *step_x, *step_y, *nx, *ny, dim)? {
+                    let b = gaussian_beam(
+                        &e,
+                        p.to_array(),
+                        axis,
+                        *concentration,
+                        *numerical_aperture,
+                        dim,
+                    )?;
+                    out.push(Sensor::GaussianBeam(b));
+                    desc.push(EndpointInfo {
+                        ix: Some(ix),
+                        iy: Some(iy),
+                        ..EndpointInfo::gaussian(i, &b, b.axis)
+                    });
                 }
             }
         }
@@ -497,6 +537,11 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
         }),
         [SensorSpec::PointGrid { nx, ny, .. }] if *nx > 1 && *ny > 1 => Some(SensorGrid {
             kind: "point_grid",
+            nx: *nx,
+            ny: *ny,
+        }),
+        [SensorSpec::GaussianGrid { nx, ny, .. }] if *nx > 1 && *ny > 1 => Some(SensorGrid {
+            kind: "gaussian_grid",
             nx: *nx,
             ny: *ny,
         }),
