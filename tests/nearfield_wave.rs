@@ -28,6 +28,9 @@
 //! dependent scattering of these dense small boxes that `wave_validation.rs` documents), peak
 //! z 6.2. About 27 s each in the ci profile.
 
+mod common_z;
+use common_z::z;
+
 use speckle::endpoints::GaussianBeam;
 use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
@@ -36,18 +39,6 @@ use speckle::estimators::{
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::phase::{Complex64, Dimension, Phase};
 use speckle::wave::{WaveOptions, render_wave};
-
-/// Largest combined z over real and imaginary parts.
-fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {
-    let part = |d: f64, s1: f64, s2: f64| {
-        if d == 0.0 {
-            0.0
-        } else {
-            d.abs() / s1.hypot(s2)
-        }
-    };
-    part(a.re - b.re, sa.re, sb.re).max(part(a.im - b.im, sa.im, sb.im))
-}
 
 struct Case {
     name: &'static str,

@@ -17,6 +17,9 @@
 //! - Forward-only renders with point endpoints in or on the medium are refused, naming
 //!   `render.coherence`.
 
+mod common_z;
+use common_z::max_z;
+
 use glam::DVec2;
 use speckle::estimators::{
     Coherence, CovarianceEstimate, CovarianceOptions, Entries, FieldOptions, NoProgress, Pair,
@@ -82,24 +85,6 @@ fn options(paths: u64, seed: u64, sampling: TracerConfig) -> CovarianceOptions {
         coherence: Coherence::ForwardAndReversed,
         sampling,
     }
-}
-
-/// The largest combined z over the upper triangle (real and imaginary parts).
-fn max_z(a: &CovarianceEstimate, b: &CovarianceEstimate) -> f64 {
-    let (a, b) = (&a.total, &b.total);
-    let n = a.value.rows();
-    let mut worst: f64 = 0.0;
-    for i in 0..n {
-        for j in i..n {
-            let (va, sa) = a.get(i, j);
-            let (vb, sb) = b.get(i, j);
-            worst = worst.max((va.re - vb.re).abs() / sa.re.hypot(sb.re));
-            if i != j {
-                worst = worst.max((va.im - vb.im).abs() / sa.im.hypot(sb.im));
-            }
-        }
-    }
-    worst
 }
 
 /// The relative standard error of the least resolved diagonal entry.

@@ -18,23 +18,15 @@
 //! other, and scatterers within a wavelength of an endpoint (a small share of the box) see the
 //! near zone in the wave solution only.
 
+mod common_z;
+use common_z::z;
+
 use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::phase::{Complex64, Dimension, Phase};
 use speckle::wave::{WaveOptions, render_wave};
-
-fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {
-    let part = |d: f64, s1: f64, s2: f64| {
-        if d == 0.0 {
-            0.0
-        } else {
-            d.abs() / s1.hypot(s2)
-        }
-    };
-    part(a.re - b.re, sa.re, sb.re).max(part(a.im - b.im, sa.im, sb.im))
-}
 
 fn compare(
     name: &str,

@@ -8,6 +8,9 @@
 //! separately, about 100 comparisons: the chance of a false alarm with correct weights is below
 //! 0.1%).
 
+mod common_z;
+use common_z::max_z;
+
 use speckle::estimators::{
     Coherence, CovarianceEstimate, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source,
     render_covariance,
@@ -39,26 +42,6 @@ fn render(tracer: TracerConfig, seed: u64) -> CovarianceEstimate {
         sampling: tracer,
     };
     render_covariance(&s, &opts, &NoProgress).unwrap()
-}
-
-fn max_z(a: &CovarianceEstimate, b: &CovarianceEstimate) -> f64 {
-    let (a, b) = (&a.total, &b.total);
-    let n = a.value.rows();
-    let mut worst: f64 = 0.0;
-    for i in 0..n {
-        for j in i..n {
-            let (va, sa) = a.get(i, j);
-            let (vb, sb) = b.get(i, j);
-            let zr = (va.re - vb.re).abs() / sa.re.hypot(sb.re);
-            let zi = if i == j {
-                0.0
-            } else {
-                (va.im - vb.im).abs() / sa.im.hypot(sb.im)
-            };
-            worst = worst.max(zr).max(zi);
-        }
-    }
-    worst
 }
 
 #[test]

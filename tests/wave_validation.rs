@@ -46,6 +46,9 @@
 //! narrower-and-deeper 3D boxes leave the ray model's regime (dependent scattering, the coherent
 //! beam diffracting in from the sides) and do not agree; see `docs/validation.md`.
 
+mod common_z;
+use common_z::z;
+
 use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
     render_intensity,
@@ -159,18 +162,6 @@ fn build(c: &Case) -> Built {
         far,
         pair_of,
     }
-}
-
-/// Largest combined z over real and imaginary parts.
-fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {
-    let part = |d: f64, s1: f64, s2: f64| {
-        if d == 0.0 {
-            0.0
-        } else {
-            d.abs() / s1.hypot(s2)
-        }
-    };
-    part(a.re - b.re, sa.re, sb.re).max(part(a.im - b.im, sa.im, sb.im))
 }
 
 fn run(c: &Case) {
