@@ -37,7 +37,7 @@ use speckle::estimators::{
     render_intensity,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::phase::{Complex64, Dimension, Phase};
+use speckle::phase::{Dimension, Phase};
 use speckle::wave::{WaveOptions, render_wave};
 
 struct Case {
