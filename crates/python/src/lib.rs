@@ -673,6 +673,38 @@ fn g1<'py>(
     Ok(d)
 }
 
+/// Renders field realizations of every pair at the times of `[motion]` (`speckle
+/// field-sequence`; Bar et al. 2023, Sec. 5).
+#[pyfunction]
+#[pyo3(signature = (problem, threads=None, force=false))]
+fn field_sequence<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    threads: Option<usize>,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = &problem.p;
+    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    temporal::sequence_motion(p).map_err(|e| run_error(py, e))?;
+    let e = p
+        .estimate(speckle::scene::cost::Command::Fields, t)
+        .map_err(|e| run_error(py, RunError::Load(p.in_document(e))))?;
+    speckle::scene::cost::guard(&e, speckle::scene::cost::machine_memory(), force)
+        .map_err(|e| run_error(py, RunError::Load(p.in_document(e))))?;
+    let s = interruptible(py, threads, |pr| temporal::field_sequence(p, pr))?
+        .map_err(|e| run_error(py, e))?;
+    let (r, nt) = (s.fields.rows(), s.times.len());
+    let shape = [vec![r, nt], p.pair_shape()].concat();
+    let d = PyDict::new(py);
+    d.set_item("kind", "field_sequence")?;
+    d.set_item("field_sequence", c16(py, s.fields.as_slice(), &shape)?)?;
+    d.set_item("times", PyArray1::from_slice(py, &s.times))?;
+    d.set_item("mean", c16(py, &s.mean, &[p.pairs()])?)?;
+    d.set_item("realizations", r)?;
+    d.set_item("paths_per_realization", s.paths_per_realization)?;
+    Ok(d)
+}
+
 /// Renders the spatio-temporal map `C[0, k](t)` of the first pair against every pair at the
 /// lags of `[motion]` (`speckle map`; Bar et al. 2023, Eqs. 36-37).
 #[pyfunction]
@@ -906,6 +938,7 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mean, m)?)?;
     m.add_function(wrap_pyfunction!(g1, m)?)?;
     m.add_function(wrap_pyfunction!(map, m)?)?;
+    m.add_function(wrap_pyfunction!(field_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     Ok(())
 }

@@ -116,6 +116,30 @@ def test_map_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
     assert np.allclose(r.map[:, 0], c.cov[0], rtol=0, atol=1e-12 * c.cov[0, 0].real)
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_field_sequence_equals_the_command_line(speckle_bin, tiny_file, tmp_path, threads):
+    """`speckle.field_sequence` writes the arrays of `speckle field-sequence` bitwise; its frame
+    at time 0 is bitwise `speckle.fields`."""
+    scene_file = tmp_path / "moving.toml"
+    scene_file.write_text(
+        tiny_file.read_text() + '\n[motion]\ndiffusion = 0.01\nlags = [0.0, 0.5, 2.0]\n'
+    )
+    out = tmp_path / "out"
+    args = ["--realizations", "3", "--paths-per-realization", "500", "--no-png"]
+    cli(speckle_bin, "field-sequence", str(scene_file), "--out", str(out), "-q", *args)
+    s = speckle.field_sequence(
+        scene_file, realizations=3, paths_per_realization=500, threads=threads
+    )
+    same(out / "tiny.field_sequence.npy", s.field_sequence)
+    same(out / "tiny.times.npy", s.times)
+    assert s.field_sequence.shape[:2] == (3, 3)
+    f = speckle.fields(scene_file, realizations=3, paths_per_realization=500, threads=threads)
+    assert s.field_sequence[:, 0].tobytes() == f.fields.tobytes()
+    with pytest.raises(speckle.SceneError) as e:
+        speckle.field_sequence(tiny_file)
+    assert e.value.field == "motion"
+
+
 def test_g1_needs_motion(tiny_file):
     with pytest.raises(speckle.SceneError) as e:
         speckle.g1(tiny_file)

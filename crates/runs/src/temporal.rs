@@ -169,3 +169,38 @@ pub fn map(p: &Problem, progress: &dyn Progress) -> Result<Map, RunError> {
         paths: est.paths,
     })
 }
+
+/// The `[motion]` table of a field-sequence render, checked: present (an error naming `motion`),
+/// frame times `>= 0` (naming `motion.lags[i]`), and the fields of every realization at every
+/// time within the size limit (naming `render.realizations`).
+pub fn sequence_motion(p: &Problem) -> Result<&MotionSettings, RunError> {
+    let motion = motion(p)?;
+    let in_doc = |e| RunError::Load(p.in_document(e));
+    if let Some((l, t)) = motion.lags.iter().enumerate().find(|(_, t)| **t < 0.0) {
+        return Err(in_doc(SceneError::InvalidInput {
+            field: format!("motion.lags[{l}]"),
+            reason: format!("the frame times of a field sequence must be >= 0 (got {t})"),
+        }));
+    }
+    let rows = p.render.realizations.saturating_mul(motion.lags.len());
+    p.field_rows_size(rows, "render.realizations")
+        .map_err(in_doc)?;
+    Ok(motion)
+}
+
+/// Renders the field sequence of `p` (Bar et al. 2023, Sec. 5): field realizations of every
+/// pair at the times of its `[motion]` table, checked by [`sequence_motion`].
+pub fn field_sequence(
+    p: &Problem,
+    progress: &dyn Progress,
+) -> Result<speckle_estimators::FieldSequence, RunError> {
+    let motion = sequence_motion(p)?;
+    let opts = crate::field_options(p);
+    Ok(speckle_estimators::render_field_sequence(
+        &p.scene,
+        &motion.model,
+        &motion.lags,
+        &opts,
+        progress,
+    )?)
+}

@@ -5,7 +5,7 @@
 use super::fields::Args;
 use super::*;
 use crate::error;
-use speckle::estimators::render_field_sequence;
+use speckle::runs::temporal;
 use speckle::scene::SceneError;
 use speckle::scene::build::motion::MotionSettings;
 use speckle::scene::npy::{encode_c16, encode_f8};
@@ -29,64 +29,37 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             .into());
     }
     let staged = plan(&p, estimate(&p, Command::Fields), run)?;
-    let (est, wall) = render(&p, &run, &motion)?;
+    let (est, wall) = render(&p, &run)?;
     write(&p, staged, &est, &motion.lags, wall)
 }
 
 /// The `[motion]` table of a command that renders field sequences (`command` names it in
-/// messages), checked: present, frame times `>= 0`, no `--shard`, the fields' size.
+/// messages), checked by `speckle::runs::temporal::sequence_motion`, and no `--shard`.
 pub fn checked_motion(
     p: &Problem,
     run: &RunOptions,
     command: &str,
 ) -> anyhow::Result<MotionSettings> {
-    let refuse = |field: &str, reason: String| {
-        p.in_document(SceneError::InvalidInput {
-            field: field.into(),
-            reason,
-        })
-    };
-    let Some(motion) = p.motion.clone() else {
-        return Err(refuse(
-            "motion",
-            format!(
-                "`speckle {command}` needs a [motion] table (diffusion, drift, and the frame \
-                 times as lags)"
-            ),
-        )
-        .into());
-    };
+    let motion = temporal::sequence_motion(p).map_err(error::runs)?;
     if run.shard.is_some() {
-        return Err(refuse(
-            "shard",
-            format!("`speckle {command}` renders whole runs only (no --shard)"),
-        )
-        .into());
+        return Err(p
+            .in_document(SceneError::InvalidInput {
+                field: "shard".into(),
+                reason: format!("`speckle {command}` renders whole runs only (no --shard)"),
+            })
+            .into());
     }
-    if let Some((l, t)) = motion.lags.iter().enumerate().find(|(_, t)| **t < 0.0) {
-        return Err(refuse(
-            &format!("motion.lags[{l}]"),
-            format!("the frame times of a field sequence must be >= 0 (got {t})"),
-        )
-        .into());
-    }
-    let (r, nt) = (p.render.realizations, motion.lags.len());
-    p.field_rows_size(r.saturating_mul(nt), "render.realizations")
-        .map_err(in_scene(p))?;
-    Ok(motion)
+    Ok(motion.clone())
 }
 
-/// Renders the field sequence of `p` at the times of `motion` (checked by
-/// [`checked_motion`]), with progress; returns it and the wall time.
+/// Renders the field sequence of `p` with progress; returns it and the wall time.
 pub fn render(
     p: &Problem,
     run: &RunOptions,
-    motion: &MotionSettings,
 ) -> anyhow::Result<(speckle::estimators::FieldSequence, f64)> {
-    let opts = speckle::runs::field_options(p);
-    let total = (p.render.realizations as u64).saturating_mul(opts.paths_per_realization);
-    run.timed(p, total, "paths", error::estimator, |pr| {
-        render_field_sequence(&p.scene, &motion.model, &motion.lags, &opts, pr)
+    let total = (p.render.realizations as u64).saturating_mul(p.render.paths_per_realization);
+    run.timed(p, total, "paths", error::runs, |pr| {
+        temporal::field_sequence(p, pr)
     })
 }
 

@@ -73,7 +73,7 @@ pub fn run(a: &ShapingArgs) -> anyhow::Result<()> {
         ),
     )?;
     let mut staged = plan(&p, estimate(&p, Command::Fields), run)?;
-    let (seq, wall) = render(&p, &run, &motion)?;
+    let (seq, wall) = render(&p, &run)?;
     let s = shape(&seq, ns, nv, a.target, a.learn, p.render.seed).map_err(|e| {
         p.in_document(SceneError::InvalidInput {
             field: e.field,

@@ -54,6 +54,7 @@ from ._speckle import SceneError, Shard, ShardError
 __all__ = [
     "EXAMPLES",
     "CovarianceResult",
+    "FieldSequenceResult",
     "FieldsResult",
     "G1Result",
     "IntensityResult",
@@ -67,6 +68,7 @@ __all__ = [
     "SingleResult",
     "WaveResult",
     "covariance",
+    "field_sequence",
     "fields",
     "g1",
     "intensity",
@@ -426,7 +428,26 @@ class MapResult(Result):
     """Number of sampled paths."""
 
 
+@dataclass(frozen=True)
+class FieldSequenceResult(Result):
+    """Field realizations of moving scatterers at the times of ``[motion]`` (``speckle
+    field-sequence``, Bar et al. 2023, Sec. 5): spatio-temporal transmission matrices whose
+    covariance is that of :func:`g1` (``C[j, k](t_b - t_a)``)."""
+
+    field_sequence: np.ndarray
+    """``(R, T, n_sources, n_sensors)`` with all pairs, else ``(R, T, J)``, complex128."""
+    times: np.ndarray
+    """``(T,)`` float64: the frame times, ``[motion] lags`` (each ``>= 0``)."""
+    mean: np.ndarray
+    """``(J,)`` the speckle mean added to every frame (zeros with ``no_mean``)."""
+    realizations: int
+    """Number of realizations ``R``."""
+    paths_per_realization: int
+    """Sub-paths per realization."""
+
+
 _RESULTS = {
+    "field_sequence": FieldSequenceResult,
     "g1": G1Result,
     "map": MapResult,
     "covariance": CovarianceResult,
@@ -586,6 +607,36 @@ def g1(
     """
     s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
     return _result(s, _speckle.g1(s._p, threads, force))  # type: ignore[return-value]
+
+
+def field_sequence(
+    scene: SceneLike,
+    *,
+    realizations: Optional[int] = None,
+    paths_per_realization: Optional[int] = None,
+    seed: Optional[int] = None,
+    forward_only: bool = False,
+    no_mean: bool = False,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> FieldSequenceResult:
+    """Renders field realizations of every pair at the times of the scene's ``[motion]`` table
+    (Bar et al. 2023, Sec. 5): frame ``l`` of realization ``r`` is the field at ``lags[l]``; a
+    frame at time 0 is bitwise :func:`fields` with the same settings. A scene without
+    ``[motion]`` raises :class:`SceneError` naming ``motion``.
+
+    >>> s = speckle.field_sequence(scene, realizations=4)   # doctest: +SKIP
+    >>> abs(s.field_sequence[0]) ** 2                       # intensity frames of realization 0
+    """
+    settings = dict(
+        realizations=realizations,
+        paths_per_realization=paths_per_realization,
+        seed=seed,
+        forward_only=forward_only,
+        no_mean=no_mean,
+    )
+    s = load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    return _result(s, _speckle.field_sequence(s._p, threads, force))  # type: ignore[return-value]
 
 
 def spatiotemporal_map(
