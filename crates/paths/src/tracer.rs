@@ -222,10 +222,11 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// The first-vertex density at `x`, in the box.
     #[inline]
     fn first_pdf(&self, x: DVec3) -> f64 {
-        let volume = self.first_vertex.pdf(self.medium, x);
         match &self.points {
-            Some(p) => p.pdf(volume, x),
-            None => volume,
+            // Points alone: the volume strategy's density is not needed.
+            Some(p) if p.volume == 0.0 => p.pdf(0.0, x),
+            Some(p) => p.pdf(self.first_vertex.pdf(self.medium, x), x),
+            None => self.first_vertex.pdf(self.medium, x),
         }
     }
 

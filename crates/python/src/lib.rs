@@ -648,7 +648,7 @@ fn g1<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
     let t = threads.unwrap_or_else(rayon::current_num_threads);
-    temporal::guard(p, t, force).map_err(|e| run_error(py, e))?;
+    temporal::guard(p, Command::G1, t, force).map_err(|e| run_error(py, e))?;
     let r = interruptible(py, threads, |pr| temporal::temporal(p, pr))?
         .map_err(|e| run_error(py, e))?;
     let shape = [r.pairs, r.lags.len()];
@@ -686,11 +686,7 @@ fn field_sequence<'py>(
     let p = &problem.p;
     let t = threads.unwrap_or_else(rayon::current_num_threads);
     temporal::sequence_motion(p).map_err(|e| run_error(py, e))?;
-    let e = p
-        .estimate(speckle::scene::cost::Command::Fields, t)
-        .map_err(|e| run_error(py, RunError::Load(p.in_document(e))))?;
-    speckle::scene::cost::guard(&e, speckle::scene::cost::machine_memory(), force)
-        .map_err(|e| run_error(py, RunError::Load(p.in_document(e))))?;
+    temporal::guard(p, Command::Fields, t, force).map_err(|e| run_error(py, e))?;
     let s = interruptible(py, threads, |pr| temporal::field_sequence(p, pr))?
         .map_err(|e| run_error(py, e))?;
     let (r, nt) = (s.fields.rows(), s.times.len());
@@ -717,7 +713,7 @@ fn map<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
     let t = threads.unwrap_or_else(rayon::current_num_threads);
-    temporal::guard(p, t, force).map_err(|e| run_error(py, e))?;
+    temporal::guard(p, Command::G1, t, force).map_err(|e| run_error(py, e))?;
     let r = interruptible(py, threads, |pr| temporal::map(p, pr))?.map_err(|e| run_error(py, e))?;
     let shape = [r.pairs, r.lags.len()];
     let d = PyDict::new(py);

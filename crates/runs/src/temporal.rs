@@ -48,12 +48,18 @@ pub fn motion(p: &Problem) -> Result<&MotionSettings, RunError> {
     })
 }
 
-/// The cost estimate of [`temporal`] on `threads` threads, refused when it exceeds the
-/// machine unless `force` (errors name the field).
-pub fn guard(p: &Problem, threads: usize, force: bool) -> Result<Estimate, RunError> {
+/// The cost estimate of a render of moving scatterers on `threads` threads (`command`:
+/// [`Command::G1`] for [`temporal`] and [`map`], [`Command::Fields`] for [`field_sequence`]),
+/// refused when it exceeds the machine unless `force` (errors name the field).
+pub fn guard(
+    p: &Problem,
+    command: Command,
+    threads: usize,
+    force: bool,
+) -> Result<Estimate, RunError> {
     motion(p)?;
     let in_doc = |e| RunError::Load(p.in_document(e));
-    let e = p.estimate(Command::G1, threads).map_err(in_doc)?;
+    let e = p.estimate(command, threads).map_err(in_doc)?;
     cost::guard(&e, cost::machine_memory(), force).map_err(in_doc)?;
     Ok(e)
 }

@@ -481,6 +481,11 @@ def _shard(spec: ShardSpec) -> Tuple[int, int]:
     return int(i), int(n)
 
 
+def _load_with(scene: SceneLike, settings: Dict[str, Any]) -> Scene:
+    """The scene with the settings that were given (not ``None``, and flags that are set)."""
+    return load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+
+
 def _run(
     kind: str,
     scene: SceneLike,
@@ -489,7 +494,7 @@ def _run(
     shard: Optional[ShardSpec],
     force: bool,
 ) -> Union[Result, Shard]:
-    s = load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    s = _load_with(scene, settings)
     if shard is not None:
         i, n = _shard(shard)
         return _speckle.render_shard(s._p, kind, i, n, threads, force)
@@ -585,7 +590,7 @@ def single(
     force: bool = False,
 ) -> SingleResult:
     """Renders the single-scattering covariance of Eq. 41 alone (first vertices only)."""
-    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    s = _load_with(scene, dict(paths=paths, seed=seed))
     return _result(s, _speckle.single(s._p, threads, force))  # type: ignore[return-value]
 
 
@@ -605,7 +610,7 @@ def g1(
     >>> r = speckle.g1(scene)                       # doctest: +SKIP
     >>> abs(r.g1[0])                                # |g1(t)| of the first pair
     """
-    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    s = _load_with(scene, dict(paths=paths, seed=seed))
     return _result(s, _speckle.g1(s._p, threads, force))  # type: ignore[return-value]
 
 
@@ -635,7 +640,7 @@ def field_sequence(
         forward_only=forward_only,
         no_mean=no_mean,
     )
-    s = load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    s = _load_with(scene, settings)
     return _result(s, _speckle.field_sequence(s._p, threads, force))  # type: ignore[return-value]
 
 
@@ -655,7 +660,7 @@ def spatiotemporal_map(
     >>> r = speckle.spatiotemporal_map(scene)       # doctest: +SKIP
     >>> r.normalised                                # |c(dx, t)| / c(0, 0), (K, L)
     """
-    s = load(scene, **{k: v for k, v in dict(paths=paths, seed=seed).items() if v is not None})
+    s = _load_with(scene, dict(paths=paths, seed=seed))
     return _result(s, _speckle.map(s._p, threads, force))  # type: ignore[return-value]
 
 
