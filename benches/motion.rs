@@ -1,8 +1,9 @@
 //! Criterion benchmark of the temporal correlation of moving scatterers (issue 12): `g1` of
 //! every pair at 64 lags (`render_correlation`, diagonal entries) against the static intensity
-//! of the same pairs (`render_intensity`, the target named by the issue: under 2x per path), for
-//! Brownian motion and for Brownian motion with drift (the drift connects both copies of every
-//! lag at both end vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
+//! (`render_intensity`) and the static covariance (`render_covariance`) of the same pairs (the
+//! target named by the issue: under 2x the static covariance per path), for Brownian motion and
+//! for Brownian motion with drift (the drift connects both copies of every lag at both end
+//! vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
 //!
 //! Also field sequences (`render_field_sequence`, Brownian motion) at 8 times against the static
 //! field sampler (`render_fields`) with the same realizations and paths, in path-frames per
@@ -15,18 +16,19 @@ use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use speckle::estimators::{
     Coherence, CovarianceOptions, Entries, FieldOptions, NoProgress, render_correlation,
-    render_field_sequence, render_fields, render_intensity,
+    render_covariance, render_field_sequence, render_fields, render_intensity,
 };
 use speckle::medium::DVec3;
 use speckle::motion::{Motion, MotionModel};
 use std::hint::black_box;
 
 fn temporal(c: &mut Criterion) {
-    let paths = 4096;
     let lags: Vec<f64> = (0..64).map(|l| l as f64 * 0.05).collect();
     for (n_src, n_sens) in [(1, 1), (2, 16)] {
         let s = scene(n_src, n_sens);
-        let opts = CovarianceOptions {
+        // 32 768 paths: 256 per batch, so that the per-batch work (64 lags of sums to reduce)
+        // weighs as in real renders; with drift (a connection per copy and lag) 4 096.
+        let opts = |paths| CovarianceOptions {
             paths,
             seed: 1,
             coherence: Coherence::ForwardAndReversed,
@@ -34,33 +36,50 @@ fn temporal(c: &mut Criterion) {
         };
         let id = format!("J={}", s.len());
         let mut g = c.benchmark_group("estimators/temporal/paths");
-        g.sample_size(10).throughput(Throughput::Elements(paths));
-        g.bench_function(BenchmarkId::new("static", &id), |b| {
-            b.iter(|| black_box(render_intensity(&s, &opts, &NoProgress).unwrap()))
-        });
-        for (name, motion) in [
-            ("brownian_64_lags", Motion::brownian(0.01).unwrap()),
+        g.sample_size(10);
+        let runs: [(&str, Option<Motion>, u64); 4] = [
+            ("static", None, 32_768),
+            ("static_covariance", None, 32_768),
+            (
+                "brownian_64_lags",
+                Some(Motion::brownian(0.01).unwrap()),
+                32_768,
+            ),
             (
                 "drift_64_lags",
-                Motion::new(0.01, DVec3::new(0.2, 0.0, 0.0)).unwrap(),
+                Some(Motion::new(0.01, DVec3::new(0.2, 0.0, 0.0)).unwrap()),
+                4_096,
             ),
-        ] {
-            let model = MotionModel::uniform(motion);
-            g.bench_function(BenchmarkId::new(name, &id), |b| {
-                b.iter(|| {
-                    black_box(
-                        render_correlation(
-                            &s,
-                            &model,
-                            &lags,
-                            &Entries::Diagonal,
-                            &opts,
-                            &NoProgress,
-                        )
-                        .unwrap(),
-                    )
-                })
-            });
+        ];
+        for (name, motion, paths) in runs {
+            let o = opts(paths);
+            g.throughput(Throughput::Elements(paths));
+            match motion {
+                None if name == "static" => g.bench_function(BenchmarkId::new(name, &id), |b| {
+                    b.iter(|| black_box(render_intensity(&s, &o, &NoProgress).unwrap()))
+                }),
+                None => g.bench_function(BenchmarkId::new(name, &id), |b| {
+                    b.iter(|| black_box(render_covariance(&s, &o, &NoProgress).unwrap()))
+                }),
+                Some(motion) => {
+                    let model = MotionModel::uniform(motion);
+                    g.bench_function(BenchmarkId::new(name, &id), |b| {
+                        b.iter(|| {
+                            black_box(
+                                render_correlation(
+                                    &s,
+                                    &model,
+                                    &lags,
+                                    &Entries::Diagonal,
+                                    &o,
+                                    &NoProgress,
+                                )
+                                .unwrap(),
+                            )
+                        })
+                    })
+                }
+            };
         }
         g.finish();
     }

@@ -151,6 +151,85 @@ enum PairMap {
 /// Most entries `types * pairs` of the table of first-vertex amplitudes.
 const MAX_TABLE: usize = 1 << 22;
 
+/// The connections of one path to every source and sensor of a tile: the legs at its first
+/// vertex `x1` and at its current vertex `x_b`, and their scattering values (Eq. 38). The
+/// connector keeps one; the spatio-temporal estimator keeps one per displaced copy of a path.
+pub(crate) struct Ends {
+    /// Legs from the sources to `x1` and from `x1` to the sensors.
+    pub in1: Legs,
+    pub out1: Legs,
+    /// Legs from the sources to `x_b` and from `x_b` to the sensors.
+    pub in_b: Legs,
+    pub out_b: Legs,
+    /// `upsilon(i -> x1) s(i . w12)` per source.
+    pub fwd_src: Cvec,
+    /// `upsilon(x1 -> v) s(-w12 . v)` per sensor.
+    pub rev_sens: Cvec,
+    /// `upsilon(x_b -> v) s(w_in . v)` per sensor.
+    pub fwd_sens: Cvec,
+    /// `upsilon(i -> x_b) s(-i . w_in)` per source.
+    pub rev_src: Cvec,
+}
+
+impl Ends {
+    /// Scratch space for the endpoints `src` and `sen`.
+    pub fn new<M: Medium>(src: &Endpoints<M>, sen: &Endpoints<M>) -> Self {
+        Self {
+            in1: src.legs(),
+            out1: sen.legs(),
+            in_b: src.legs(),
+            out_b: sen.legs(),
+            fwd_src: Cvec::zeros(src.len()),
+            rev_sens: Cvec::zeros(sen.len()),
+            fwd_sens: Cvec::zeros(sen.len()),
+            rev_src: Cvec::zeros(src.len()),
+        }
+    }
+
+    /// The legs at the first vertex `x1`.
+    pub fn start<M: Medium>(&mut self, src: &Endpoints<M>, sen: &Endpoints<M>, x1: DVec3) {
+        src.connect(x1, &mut self.in1);
+        sen.connect(x1, &mut self.out1);
+    }
+
+    /// The scattering values at `x1` once the first direction `w12` is known (amplitude
+    /// `phase` of the particle at `x1`).
+    pub fn second<M: Medium, P: PhaseFunction>(
+        &mut self,
+        src: &Endpoints<M>,
+        sen: &Endpoints<M>,
+        phase: &P,
+        w12: DVec3,
+    ) {
+        let out = &mut self.fwd_src;
+        src.scatter(&self.in1, phase, |d| (d, w12), &mut out.re, &mut out.im);
+        let out = &mut self.rev_sens;
+        sen.scatter(&self.out1, phase, |d| (-w12, d), &mut out.re, &mut out.im);
+    }
+
+    /// The legs and scattering values at the vertex `x` reached along `w_in` (amplitude
+    /// `phase` of the particle there); the source side only with reversed paths.
+    #[allow(clippy::too_many_arguments)]
+    pub fn at<M: Medium, P: PhaseFunction>(
+        &mut self,
+        src: &Endpoints<M>,
+        sen: &Endpoints<M>,
+        phase: &P,
+        x: DVec3,
+        w_in: DVec3,
+        coherence: Coherence,
+    ) {
+        sen.connect(x, &mut self.out_b);
+        let out = &mut self.fwd_sens;
+        sen.scatter(&self.out_b, phase, |d| (w_in, d), &mut out.re, &mut out.im);
+        if coherence == Coherence::ForwardAndReversed {
+            src.connect(x, &mut self.in_b);
+            let out = &mut self.rev_src;
+            src.scatter(&self.in_b, phase, |d| (d, -w_in), &mut out.re, &mut out.im);
+        }
+    }
+}
+
 /// Scratch space for the connections of one path at a time to the pairs of one tile;
 /// allocated once per work item.
 pub(crate) struct Connector<'s, M, P> {
@@ -160,20 +239,8 @@ pub(crate) struct Connector<'s, M, P> {
     pairs: PairMap,
     /// Particle type at `x1` of the current path.
     type1: usize,
-    /// Legs from the sources to `x1` and from `x1` to the sensors.
-    in1: Legs,
-    out1: Legs,
-    /// Legs from the sources to `x_b` and from `x_b` to the sensors.
-    in_b: Legs,
-    out_b: Legs,
-    /// `upsilon(i -> x1) s(i . w12)` per source.
-    fwd_src: Cvec,
-    /// `upsilon(x1 -> v) s(-w12 . v)` per sensor.
-    rev_sens: Cvec,
-    /// `upsilon(x_b -> v) s(w_in . v)` per sensor.
-    fwd_sens: Cvec,
-    /// `upsilon(i -> x_b) s(-i . w_in)` per source.
-    rev_src: Cvec,
+    /// The current path's legs and scattering values.
+    ends: Ends,
     /// Per particle type, `s(i . v)` per pair, when every endpoint is directional (plane waves
     /// and far-field sensors); empty otherwise.
     first_amp: Vec<Cvec>,
@@ -218,22 +285,14 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
                 )
             }
         };
-        let (ns, nv, n) = (sources.len(), sensors.len(), tile.len());
-        let (in1, out1) = (sources.legs(), sensors.legs());
+        let n = tile.len();
         let mut c = Self {
             scene,
-            in_b: sources.legs(),
-            out_b: sensors.legs(),
+            ends: Ends::new(&sources, &sensors),
             sources,
             sensors,
             pairs,
             type1: 0,
-            in1,
-            out1,
-            fwd_src: Cvec::zeros(ns),
-            rev_sens: Cvec::zeros(nv),
-            fwd_sens: Cvec::zeros(nv),
-            rev_src: Cvec::zeros(ns),
             first_amp: vec![],
             a: vec![],
         };
@@ -249,7 +308,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
                 .map(|phase| {
                     let mut t = Cvec::zeros(n);
                     c.for_pairs(|i, s, v| {
-                        let a = phase.amplitude_between(c.in1.dir(s), c.out1.dir(v));
+                        let a = phase.amplitude_between(c.ends.in1.dir(s), c.ends.out1.dir(v));
                         t.re[i] = a.re;
                         t.im[i] = a.im;
                     });
@@ -297,18 +356,22 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         }
     }
 
+    /// The current path's legs and scattering values.
+    pub(crate) fn ends(&self) -> &Ends {
+        &self.ends
+    }
+
     /// Starts a path at `x1`, where a particle of type `ty` scatters: the legs at `x1`.
-    fn start(&mut self, x1: DVec3, ty: usize) {
+    pub(crate) fn start(&mut self, x1: DVec3, ty: usize) {
         self.type1 = ty;
-        self.sources.connect(x1, &mut self.in1);
-        self.sensors.connect(x1, &mut self.out1);
+        self.ends.start(&self.sources, &self.sensors, x1);
     }
 
     /// Calls `emit(i, z F_i)` for every pair `i` of the tile, with the single-scattering
     /// values `F_i = upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` of the current path (Eq. 41's
     /// integrand, with the amplitude `s_ty` of the particle at `x1`).
     fn single(&self, z: Complex64, mut emit: impl FnMut(usize, Complex64)) {
-        let (in1, out1) = (&self.in1, &self.out1);
+        let (in1, out1) = (&self.ends.in1, &self.ends.out1);
         let table = self.first_amp.get(self.type1);
         let phase = &self.scene.phases()[self.type1];
         if self.sources.has_gaussian() || self.sensors.has_gaussian() {
@@ -331,6 +394,12 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// values `F_j` (Eq. 41's integrand).
     pub(crate) fn first(&mut self, x1: DVec3, ty: usize) {
         self.start(x1, ty);
+        self.fill_first();
+    }
+
+    /// Fills `a` with the single-scattering values `F_j` of the path started by
+    /// [`Connector::start`].
+    pub(crate) fn fill_first(&mut self) {
         let mut a = std::mem::take(&mut self.a);
         self.single(Complex64::new(1.0, 0.0), |i, f| a[i] = f);
         self.a = a;
@@ -339,7 +408,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Starts a path at `x1` (particle type `ty`) and adds `z F_j` to `u` (local pair order).
     pub(crate) fn add_first(&mut self, x1: DVec3, ty: usize, z: Complex64, u: &mut Cvec) {
         self.start(x1, ty);
-        let (in1, out1) = (&self.in1, &self.out1);
+        let (in1, out1) = (&self.ends.in1, &self.ends.out1);
         match (&self.pairs, self.first_amp.get(ty)) {
             (PairMap::Grid { sensors: nv }, Some(t)) => {
                 // The hot case of far-field images: contiguous rows, vectorised.
@@ -369,37 +438,31 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Fixes the first direction `w12` of the current path (call once, at its second vertex).
     pub(crate) fn second(&mut self, w12: DVec3) {
         let phase = &self.scene.phases()[self.type1];
-        let out = &mut self.fwd_src;
-        self.sources
-            .scatter(&self.in1, phase, |d| (d, w12), &mut out.re, &mut out.im);
-        let out = &mut self.rev_sens;
-        self.sensors
-            .scatter(&self.out1, phase, |d| (-w12, d), &mut out.re, &mut out.im);
+        self.ends.second(&self.sources, &self.sensors, phase, w12);
     }
 
     /// Computes the per-endpoint values of vertex `x_b`, where a particle of type `ty`
     /// scatters, reached along `w_in` (Eq. 38; with types, Eq. 48 of App. A.1 for the sampled
     /// types of `x1` and `x_b`).
-    fn legs_at(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
+    pub(crate) fn legs_at(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
         let phase = &self.scene.phases()[ty];
-        self.sensors.connect(x, &mut self.out_b);
-        let out = &mut self.fwd_sens;
-        self.sensors
-            .scatter(&self.out_b, phase, |d| (w_in, d), &mut out.re, &mut out.im);
-        if coherence == Coherence::ForwardAndReversed {
-            self.sources.connect(x, &mut self.in_b);
-            let out = &mut self.rev_src;
-            self.sources
-                .scatter(&self.in_b, phase, |d| (d, -w_in), &mut out.re, &mut out.im);
-        }
+        self.ends
+            .at(&self.sources, &self.sensors, phase, x, w_in, coherence);
     }
 
     /// Fills `a` with the next-event values of vertex `x_b` (particle type `ty`, reached along
     /// `w_in`): `a_j = fwd_src F_sens (+ rev_src R_sens)` (Eq. 38).
     pub(crate) fn vertex(&mut self, x: DVec3, w_in: DVec3, ty: usize, coherence: Coherence) {
         self.legs_at(x, w_in, ty, coherence);
+        self.fill_vertex(coherence);
+    }
+
+    /// Fills `a` with the next-event values of the vertex whose legs [`Connector::legs_at`]
+    /// computed.
+    pub(crate) fn fill_vertex(&mut self, coherence: Coherence) {
         let reversed = coherence == Coherence::ForwardAndReversed;
-        let (fs, fv, rs, rv) = (&self.fwd_src, &self.fwd_sens, &self.rev_src, &self.rev_sens);
+        let e = &self.ends;
+        let (fs, fv, rs, rv) = (&e.fwd_src, &e.fwd_sens, &e.rev_src, &e.rev_sens);
         let mut a = std::mem::take(&mut self.a);
         self.for_pairs(|i, s, v| {
             let mut x = fs.get(s) * fv.get(v);
@@ -424,7 +487,8 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     ) {
         self.legs_at(x, w_in, ty, coherence);
         let reversed = coherence == Coherence::ForwardAndReversed;
-        let (fs, fv, rs, rv) = (&self.fwd_src, &self.fwd_sens, &self.rev_src, &self.rev_sens);
+        let e = &self.ends;
+        let (fs, fv, rs, rv) = (&e.fwd_src, &e.fwd_sens, &e.rev_src, &e.rev_sens);
         match &self.pairs {
             PairMap::Grid { sensors: nv } => {
                 let nv = *nv;

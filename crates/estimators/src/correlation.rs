@@ -37,15 +37,17 @@
 //! [`crate::render_intensity`] (the diagonal). Other lags accumulate complex values entry by
 //! entry ([`speckle_stats::Layout::GeneralDiagonal`]): `O(E L)` exponentials per vertex for
 //! `E` entries and `L` lags, with the end-vertex products formed once per vertex and lag-free
-//! when nothing drifts.
+//! when nothing drifts. Without drift the copies connect where the static connector does (its
+//! legs serve both), and lags that are whole multiples of one step take their factors as powers
+//! of one exponential per term ([`crate::lag_powers`]), summed per batch.
 
-use crate::connect::{Connector, Cvec};
+use crate::connect::{Connector, Ends};
+use crate::lag_powers::{PowerSums, Powers};
 use crate::{
     Coherence, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_endpoints::{Endpoints, Legs};
 use speckle_medium::Medium;
 use speckle_motion::{MotionFactor, MotionModel, MotionState};
 use speckle_paths::{PathRng, Vertex, VertexSink};
@@ -97,38 +99,6 @@ impl CorrelationEstimate {
     }
 }
 
-/// The connections of one copy of a path (one side of one lag) to every endpoint: legs at its
-/// (displaced) first and current vertices and their scattering connections.
-struct Ends {
-    in1: Legs,
-    out1: Legs,
-    in_b: Legs,
-    out_b: Legs,
-    /// `upsilon(i -> x1) s(i . w12)` per source.
-    fwd_src: Cvec,
-    /// `upsilon(x1 -> v) s(-w12 . v)` per sensor.
-    rev_sens: Cvec,
-    /// `upsilon(x_b -> v) s(w_in . v)` per sensor.
-    fwd_sens: Cvec,
-    /// `upsilon(i -> x_b) s(-i . w_in)` per source.
-    rev_src: Cvec,
-}
-
-impl Ends {
-    fn new<M: Medium>(src: &Endpoints<M>, sen: &Endpoints<M>) -> Self {
-        Self {
-            in1: src.legs(),
-            out1: sen.legs(),
-            in_b: src.legs(),
-            out_b: sen.legs(),
-            fwd_src: Cvec::zeros(src.len()),
-            rev_sens: Cvec::zeros(sen.len()),
-            fwd_sens: Cvec::zeros(sen.len()),
-            rev_src: Cvec::zeros(src.len()),
-        }
-    }
-}
-
 /// One estimated entry: local source and sensor of both copies.
 #[derive(Debug, Clone, Copy)]
 struct Entry {
@@ -143,6 +113,8 @@ struct Plan {
     lags: Vec<f64>,
     /// Whether lag `l` is exactly zero (accumulated as the static covariance).
     zero: Vec<bool>,
+    /// Whether any lag is.
+    any_zero: bool,
     entries: Vec<(usize, usize)>,
     local: Vec<Entry>,
     mode: Mode,
@@ -151,54 +123,8 @@ struct Plan {
     combos: usize,
     k: f64,
     /// Without drift, lags that are whole multiples of one step: their factors are powers of
-    /// one exponential per term.
+    /// one exponential per term ([`crate::lag_powers`]).
     powers: Option<Powers>,
-}
-
-/// Lags `|t_l| = m_l delta` (whole `m_l`, the largest at most [`Powers::MAX_STEPS`] times the
-/// number of lags). Without drift every factor of a contribution at lag `t` is
-/// `exp(-k^2 |t| a)` for an exponent `a` of the term (the interior sum `Y` plus the end
-/// transfers), so it is `r^(m_l)` with `r = exp(-k^2 delta a)`: one `exp` per term and a
-/// running product over the lags instead of one `exp` (and a complex rotation) per term and
-/// lag. The values differ from the direct ones by rounding (relative `~ m_l` ulps).
-#[derive(Debug, Clone, PartialEq)]
-struct Powers {
-    delta: f64,
-    /// The non-zero lags `(l, m_l)`, by increasing `m_l`.
-    order: Vec<(usize, u64)>,
-}
-
-impl Powers {
-    /// Steps of the running product allowed per lag (beyond, the lags are not regular enough
-    /// for powers to pay).
-    const MAX_STEPS: u64 = 4;
-
-    /// The powers of `lags` when they are whole multiples of their smallest non-zero magnitude.
-    fn of(lags: &[f64]) -> Option<Self> {
-        let delta = lags
-            .iter()
-            .map(|t| t.abs())
-            .filter(|t| *t > 0.0)
-            .fold(f64::INFINITY, f64::min);
-        if !delta.is_finite() {
-            return None;
-        }
-        let mut order = Vec::new();
-        for (l, t) in lags.iter().enumerate() {
-            if *t == 0.0 {
-                continue;
-            }
-            let m = (t.abs() / delta).round();
-            if (m * delta - t.abs()).abs() > 1e-12 * t.abs()
-                || m > (Self::MAX_STEPS * lags.len() as u64) as f64
-            {
-                return None;
-            }
-            order.push((l, m as u64));
-        }
-        order.sort_by_key(|&(l, m)| (m, l));
-        Some(Self { delta, order })
-    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -212,14 +138,15 @@ enum Mode {
 struct Scratch<'s, M, P> {
     conn: Connector<'s, M, P>,
     state: MotionState,
-    /// One set (nothing drifts) or one per lag and side (`2 l + side`).
+    /// With drift, the connections of both copies of every lag (`2 l + side`); without, the
+    /// connector's.
     ends: Vec<Ends>,
     /// Per entry and term combination: amplitude product and Brownian exponent (per `k^2 |t|`).
     prod: Vec<Complex64>,
     expo: Vec<f64>,
     buf: Vec<Complex64>,
-    /// Per lag and entry (`[l * E + e]`): the values of the lags taken by [`Powers`].
-    table: Vec<Complex64>,
+    /// The batch's sums of the lags taken by [`Powers`]: single and multiple scattering.
+    table: Option<[PowerSums; 2]>,
     /// Per lag: whether every vertex of the path so far lies in the medium at both times
     /// (displaced by `-/+ t U / 2`); a path through a scatterer that is outside the medium at
     /// either time contributes nothing at that lag.
@@ -238,12 +165,6 @@ struct CorrelationSink<'a, 's, 'p, M, P> {
 }
 
 impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
-    /// The index into `ends` of lag `l`, side `side` (0: copy 1 at `-t/2`, 1: copy 2).
-    #[inline]
-    fn end_index(&self, l: usize, side: usize) -> usize {
-        if self.plan.drift { 2 * l + side } else { 0 }
-    }
-
     /// The displacement of a vertex with drift `u` for copy `side` at lag `l`.
     #[inline]
     fn shift(&self, l: usize, side: usize, u: DVec3) -> DVec3 {
@@ -259,14 +180,11 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         b.contains(x + self.shift(l, 0, u)) && b.contains(x + self.shift(l, 1, u))
     }
 
-    /// Sets of ends to fill: `(index, lag, side)`.
-    fn sets(&self) -> impl Iterator<Item = (usize, usize, usize)> + use<M, P> {
-        let n = if self.plan.drift {
-            2 * self.plan.lags.len()
-        } else {
-            1
-        };
-        (0..n).map(|i| (i, i / 2, i % 2))
+    /// Whether the connector's legs are needed: for the zero lags, and for every lag when
+    /// nothing drifts (then both copies of every lag connect where the connector does).
+    #[inline]
+    fn connector_legs(&self) -> bool {
+        !self.plan.drift || self.plan.any_zero
     }
 
     /// Accumulates a zero lag as the static covariance does: the connector's pair values.
@@ -299,51 +217,62 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         self.sums[part].push_values(&s.buf, w);
     }
 
-    /// [`Self::push_lag`] of every non-zero lag at once by [`Powers`] (no drift: one set of
-    /// ends, lag-independent terms): adds `w sum prod exp(-k^2 |t| (y + expo))` to the sum of
-    /// part `2 l + half` of every lag `l`, `y` the interior exponent.
+    /// [`Self::push_lag`] of every non-zero lag at once by [`Powers`] (no drift: lag-independent
+    /// terms): adds `w sum prod exp(-k^2 |t| (y + expo))` to the batch's sums of part `half`
+    /// (0: single, 1: multiple scattering) of every lag, `y` the interior exponent. Term combinations of one entry with the same exponent (the two
+    /// cross terms of an entry whose copies share their ends, whose sum is real) are added
+    /// before their powers are formed.
     fn push_powers(&mut self, half: usize, w: f64, y: f64) {
-        let Some(p) = &self.plan.powers else {
+        let (Some(p), Some(tables)) = (&self.plan.powers, &mut self.s.table) else {
             return;
         };
+        let table = &mut tables[half];
         let c = self.plan.k * self.plan.k * p.delta;
         let n = self.plan.combos;
-        let ne = self.plan.local.len();
-        let s = &mut *self.s;
-        s.table.fill(Complex64::ZERO);
-        for e in 0..ne {
+        for e in 0..self.plan.local.len() {
+            let mut terms = [(Complex64::ZERO, 0.0); 4];
+            let mut len = 0;
             for i in e * n..(e + 1) * n {
-                let pr = s.prod[i];
+                let (pr, a) = (self.s.prod[i], self.s.expo[i]);
                 if pr == Complex64::ZERO {
                     continue;
                 }
-                let r = (-c * (y + s.expo[i])).exp();
-                let (mut z, mut m) = (1.0, 0);
-                for &(l, ml) in &p.order {
-                    while m < ml {
-                        z *= r;
-                        m += 1;
+                match terms[..len].iter_mut().find(|t| t.1 == a) {
+                    Some(t) => t.0 += pr,
+                    None => {
+                        terms[len] = (pr, a);
+                        len += 1;
                     }
-                    s.table[l * ne + e] += pr * z;
                 }
             }
-        }
-        let w = Complex64::new(w, 0.0);
-        for &(l, _) in &p.order {
-            if s.inside[l] {
-                self.sums[2 * l + half].push_values(&s.table[l * ne..(l + 1) * ne], w);
+            for &(pr, a) in &terms[..len] {
+                table.add(e, w * pr, (-c * (y + a)).exp());
             }
+        }
+    }
+
+    /// The ends of both copies of lag `l`.
+    #[inline]
+    fn ends_of<'x>(
+        conn: &'x Connector<'_, M, P>,
+        ends: &'x [Ends],
+        drift: bool,
+        l: usize,
+    ) -> (&'x Ends, &'x Ends) {
+        if drift {
+            (&ends[2 * l], &ends[2 * l + 1])
+        } else {
+            (conn.ends(), conn.ends())
         }
     }
 
     /// Fills `prod`, `expo` with the single-scattering terms of the ends of lag `l`.
     fn single_terms(&mut self, l: usize) {
-        let (i0, i1) = (self.end_index(l, 0), self.end_index(l, 1));
         let phase = &self.scene.phases()[self.type1];
         let d1 = self.s.state.first.diffusion;
         let n = self.plan.combos;
         let s = &mut *self.s;
-        let (a, b) = (&s.ends[i0], &s.ends[i1]);
+        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.drift, l);
         for (e, en) in self.plan.local.iter().enumerate() {
             let f = |ends: &Ends, src: usize, sen: usize| {
                 let (ds, dv) = (ends.in1.dir(src), ends.out1.dir(sen));
@@ -368,13 +297,12 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     /// Fills `prod`, `expo` with the terms of the vertex `x_b` reached along `w_in` for the
     /// ends of lag `l`.
     fn vertex_terms(&mut self, l: usize, w_in: DVec3) {
-        let (i0, i1) = (self.end_index(l, 0), self.end_index(l, 1));
         let (d1, db) = (self.s.state.first.diffusion, self.s.state.here.diffusion);
         let w1 = self.s.state.w1;
         let reversed = self.coherence == Coherence::ForwardAndReversed;
         let n = self.plan.combos;
         let s = &mut *self.s;
-        let (a, b) = (&s.ends[i0], &s.ends[i1]);
+        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.drift, l);
         // Term t of a copy: amplitude, leg gradient at x1, leg gradient at x_b.
         let term = |ends: &Ends, src: usize, sen: usize, rev: bool| {
             if rev {
@@ -391,18 +319,19 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                 )
             }
         };
+        let terms = if reversed { 2 } else { 1 };
         for (e, en) in self.plan.local.iter().enumerate() {
+            // The terms of each copy, once (the copies of a diagonal entry share them when
+            // nothing drifts).
+            let t1 = [term(a, en.s1, en.v1, false), term(a, en.s1, en.v1, true)];
+            let t2 = if std::ptr::eq(a, b) && (en.s1, en.v1) == (en.s2, en.v2) {
+                t1
+            } else {
+                [term(b, en.s2, en.v2, false), term(b, en.s2, en.v2, true)]
+            };
             let mut i = e * n;
-            for r1 in [false, true] {
-                if r1 && !reversed {
-                    continue;
-                }
-                let (p1, g11, gb1) = term(a, en.s1, en.v1, r1);
-                for r2 in [false, true] {
-                    if r2 && !reversed {
-                        continue;
-                    }
-                    let (p2, g12, gb2) = term(b, en.s2, en.v2, r2);
+            for &(p1, g11, gb1) in &t1[..terms] {
+                for &(p2, g12, gb2) in &t2[..terms] {
                     let q1 = speckle_motion::first_transfer(w1, g11, g12);
                     let qb = speckle_motion::last_transfer(w_in, gb1, gb2);
                     s.prod[i] = p1 * p2.conj();
@@ -418,21 +347,22 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         self.type1 = ty;
         self.factor.begin(&mut self.s.state, x1);
-        if self.plan.zero.iter().any(|z| *z) {
-            self.s.conn.first(x1, ty);
+        if self.connector_legs() {
+            self.s.conn.start(x1, ty);
         }
-        let u = self.s.state.first.drift;
+        if self.plan.any_zero {
+            self.s.conn.fill_first();
+        }
         if self.plan.drift {
+            let u = self.s.state.first.drift;
             for l in 0..self.plan.lags.len() {
                 self.s.inside[l] = self.stays(l, x1, u);
+                for side in 0..2 {
+                    let x = x1 + self.shift(l, side, u);
+                    let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
+                    self.s.ends[2 * l + side].start(src, sen, x);
+                }
             }
-        }
-        for (i, l, side) in self.sets() {
-            let x = x1 + self.shift(l, side, u);
-            let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
-            let ends = &mut self.s.ends[i];
-            src.connect(x, &mut ends.in1);
-            sen.connect(x, &mut ends.out1);
         }
         if let Some(p) = &self.plan.powers {
             for l in 0..self.plan.lags.len() {
@@ -446,7 +376,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             }
             return;
         }
-        let mut done = usize::MAX;
+        let mut done = false;
         for l in 0..self.plan.lags.len() {
             if self.plan.zero[l] {
                 self.push_static(2 * l, weight);
@@ -455,76 +385,45 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if !self.s.inside[l] {
                 continue;
             }
-            let set = self.end_index(l, 0);
-            if set != done {
+            if self.plan.drift || !done {
                 self.single_terms(l);
-                done = set;
+                done = true;
             }
             self.push_lag(2 * l, l, Complex64::new(weight, 0.0));
         }
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
-        let zero = self.plan.zero.iter().any(|z| *z);
         let phase1 = &self.scene.phases()[self.type1];
         let phase = &self.scene.phases()[v.ty];
-        let reversed = self.coherence == Coherence::ForwardAndReversed;
         if v.index == 2 {
-            if zero {
+            if self.connector_legs() {
                 self.s.conn.second(v.w12);
             }
-            for (i, _, _) in self.sets() {
+            if self.plan.drift {
                 let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
-                let e = &mut self.s.ends[i];
-                let w12 = v.w12;
-                src.scatter(
-                    &e.in1,
-                    phase1,
-                    |d| (d, w12),
-                    &mut e.fwd_src.re,
-                    &mut e.fwd_src.im,
-                );
-                sen.scatter(
-                    &e.out1,
-                    phase1,
-                    |d| (-w12, d),
-                    &mut e.rev_sens.re,
-                    &mut e.rev_sens.im,
-                );
+                for e in &mut self.s.ends {
+                    e.second(src, sen, phase1, v.w12);
+                }
             }
         }
         self.factor.advance(&mut self.s.state, v);
-        if zero {
-            self.s.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
+        if self.connector_legs() {
+            self.s.conn.legs_at(v.x, v.w_in, v.ty, self.coherence);
         }
-        let u = self.s.state.here.drift;
+        if self.plan.any_zero {
+            self.s.conn.fill_vertex(self.coherence);
+        }
         let w_in = v.w_in;
         if self.plan.drift {
+            let u = self.s.state.here.drift;
             for l in 0..self.plan.lags.len() {
                 self.s.inside[l] = self.s.inside[l] && self.stays(l, v.x, u);
-            }
-        }
-        for (i, l, side) in self.sets() {
-            let x = v.x + self.shift(l, side, u);
-            let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
-            let e = &mut self.s.ends[i];
-            sen.connect(x, &mut e.out_b);
-            sen.scatter(
-                &e.out_b,
-                phase,
-                |d| (w_in, d),
-                &mut e.fwd_sens.re,
-                &mut e.fwd_sens.im,
-            );
-            if reversed {
-                src.connect(x, &mut e.in_b);
-                src.scatter(
-                    &e.in_b,
-                    phase,
-                    |d| (d, -w_in),
-                    &mut e.rev_src.re,
-                    &mut e.rev_src.im,
-                );
+                for side in 0..2 {
+                    let x = v.x + self.shift(l, side, u);
+                    let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
+                    self.s.ends[2 * l + side].at(src, sen, phase, x, w_in, self.coherence);
+                }
             }
         }
         let weight = v.weight_for(self.coherence);
@@ -542,7 +441,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             return;
         }
         let k = self.plan.k;
-        let mut done = usize::MAX;
+        let mut done = false;
         for l in 0..self.plan.lags.len() {
             if self.plan.zero[l] {
                 self.push_static(2 * l + 1, weight);
@@ -551,10 +450,9 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if !self.s.inside[l] {
                 continue;
             }
-            let set = self.end_index(l, 0);
-            if set != done {
+            if self.plan.drift || !done {
                 self.vertex_terms(l, w_in);
-                done = set;
+                done = true;
             }
             let w = self.s.state.interior(k, self.plan.lags[l]) * weight;
             self.push_lag(2 * l + 1, l, w);
@@ -682,6 +580,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
     let plan = Plan {
         lags: lags.to_vec(),
         zero: lags.iter().map(|t| *t == 0.0).collect(),
+        any_zero: lags.contains(&0.0),
         entries: list,
         local,
         mode,
@@ -710,7 +609,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             [part, part]
         })
         .collect();
-    let sets = if plan.drift { 2 * lags.len() } else { 1 };
+    let sets = if plan.drift { 2 * lags.len() } else { 0 };
     let init = || {
         let conn = Connector::new(scene);
         let ends = (0..sets)
@@ -723,11 +622,10 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             prod: vec![Complex64::ZERO; e_len * plan.combos],
             expo: vec![0.0; e_len * plan.combos],
             buf: vec![Complex64::ZERO; e_len],
-            table: if plan.powers.is_some() {
-                vec![Complex64::ZERO; e_len * lags.len()]
-            } else {
-                Vec::new()
-            },
+            table: plan
+                .powers
+                .as_ref()
+                .map(|p| [PowerSums::new(p, e_len), PowerSums::new(p, e_len)]),
             inside: vec![true; lags.len()],
         }
     };
@@ -745,7 +643,15 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
     let groups = PartGroups { parts, group: 2 };
-    let estimates = batch_moments_grouped(options.paths, &groups, init, path, progress)
+    // The sums of the lags taken by powers are added to the batch's once, at its end.
+    let end = |s: &mut Scratch<M, P>, sums: &mut [BatchSum]| {
+        if let Some(tables) = &mut s.table {
+            for (half, t) in tables.iter_mut().enumerate() {
+                t.flush(sums, |l| 2 * l + half, &mut s.buf);
+            }
+        }
+    };
+    let estimates = batch_moments_grouped(options.paths, &groups, init, path, end, progress)
         .ok_or(EstimatorError::Cancelled)?;
     let per_lag = estimates
         .into_iter()

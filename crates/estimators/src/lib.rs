@@ -49,6 +49,7 @@ mod correlation;
 mod covariance;
 mod field_sequences;
 mod fields;
+mod lag_powers;
 
 pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_correlation};
 pub use covariance::{

@@ -227,23 +227,27 @@ pub struct PartGroups {
 /// [`batch_moments`] over groups of parts, each with its own total: returns, per group, the
 /// estimates of its parts and of their sum (the only part's estimate again for a group of one),
 /// `None` if cancelled. Part `p` accumulates in `sums[p]`, of layout and length
-/// `groups.parts[p]`.
+/// `groups.parts[p]`. After the last path of a batch, `end(state, sums)` adds what the batch's
+/// state holds back (sums that a renderer keeps in a layout of its own and adds once per batch);
+/// a batch's state is made by `init` for that batch alone.
 ///
 /// Each group is reduced by its own [`MomentsReduction`], so the estimates of a group are bitwise
 /// those of a [`batch_moments`] render of its parts alone (with their total).
 ///
 /// # Panics
 /// If the parts do not split into whole groups, or the parts of a group differ in layout.
-pub fn batch_moments_grouped<S, I, W>(
+pub fn batch_moments_grouped<S, I, W, E>(
     paths: u64,
     groups: &PartGroups,
     init: I,
     path: W,
+    end: E,
     progress: &dyn Progress,
 ) -> Option<Vec<(Vec<MatrixEstimate>, Option<MatrixEstimate>)>>
 where
     I: Fn() -> S + Sync,
     W: Fn(&mut S, u64, &mut [BatchSum], &mut Poll) + Sync,
+    E: Fn(&mut S, &mut [BatchSum]) + Sync,
 {
     let layouts = &groups.parts;
     let g = groups.group.max(1);
@@ -273,6 +277,7 @@ where
         for_each_path(range.clone(), progress, |n, poll| {
             path(&mut state, n, &mut sums, poll)
         })?;
+        end(&mut state, &mut sums);
         let sums: Vec<Vec<Complex64>> = sums.into_iter().map(BatchSum::finish).collect();
         Some((range.end - range.start, sums))
     };
