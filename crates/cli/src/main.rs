@@ -69,6 +69,11 @@ enum Command {
     /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the
     /// tracked map), and a PNG of |C[0, k](t)| / C[0, 0](0).
     Map(covariance::Args),
+    /// Tracking (Bar et al. 2023, Eqs. 38-39, Fig. 9): the temporal correlation of the scene's
+    /// point source and point sensor in a medium drifting with U, without tracking, with both
+    /// shifted by t U over each lag, and with the drift removed (same diffusion); an SVG plot
+    /// and the largest deviation of the tracked curve from U = 0 in standard errors.
+    Tracking(covariance::Args),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(fields::Args),
     /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
@@ -122,6 +127,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Intensity(a) => intensity::run(&a),
         Command::G1(a) => g1::run(&a),
         Command::Map(a) => map::run(&a),
+        Command::Tracking(a) => tracking::run(&a),
         Command::Fields(a) => fields::run(&a),
         Command::FieldSequence(a) => field_sequence::run(&a),
         Command::Shaping(a) => shaping::run(&a),

@@ -17,6 +17,7 @@ pub mod merge;
 pub mod mie;
 pub mod shaping;
 pub mod single;
+pub mod tracking;
 pub mod wave;
 
 use crate::error::{self, InputError};
