@@ -111,6 +111,12 @@ enum Command {
     /// `speckle example fig11b_memory_large` print the two panels of Fig. 11), and writes
     /// `<name>.memory*.npy`, a JSON sidecar with the Mie figures and an SVG plot.
     MemorySpectrum(memory_spectrum::Args),
+    /// The memory effect against the tilt for several anisotropies g at a fixed mean free path
+    /// (Bar et al. 2023, Fig. 6): C(theta) = |C_0theta|^2 / (C_00 C_thetatheta) per g, against
+    /// the C1 term (k theta L)^2 / sinh^2(k theta L); reads a study file of its own
+    /// (`scenes/fig6a_memory_tilt.toml`) and writes `<name>.memory_tilt*.npy`, a JSON sidecar
+    /// and an SVG plot.
+    MemoryTilt(memory_tilt::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -137,6 +143,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mie(a) => mie::run(a),
         Command::FitPhase(a) => fit_phase::run(a),
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
+        Command::MemoryTilt(a) => memory_tilt::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

@@ -13,6 +13,7 @@ pub mod intensity;
 pub mod map;
 pub mod mean;
 pub mod memory_spectrum;
+pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
 pub mod shaping;
