@@ -69,6 +69,11 @@ enum Command {
     /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the
     /// tracked map), and a PNG of |C[0, k](t)| / C[0, 0](0).
     Map(covariance::Args),
+    /// Tracking (Bar et al. 2023, Eqs. 38-39, Fig. 9): the temporal correlation of the scene's
+    /// point source and point sensor in a medium drifting with U, without tracking, with both
+    /// shifted by t U over each lag, and with the drift removed (same diffusion); an SVG plot
+    /// and the largest deviation of the tracked curve from U = 0 in standard errors.
+    Tracking(covariance::Args),
     /// Render field realizations (Alg. 2), with PNG intensity images of sensor grids.
     Fields(fields::Args),
     /// Field sequences of moving scatterers (Bar et al. 2023): field realizations at the
@@ -106,6 +111,12 @@ enum Command {
     /// `speckle example fig11b_memory_large` print the two panels of Fig. 11), and writes
     /// `<name>.memory*.npy`, a JSON sidecar with the Mie figures and an SVG plot.
     MemorySpectrum(memory_spectrum::Args),
+    /// The memory effect against the tilt for several anisotropies g at a fixed mean free path
+    /// (Bar et al. 2023, Fig. 6): C(theta) = |C_0theta|^2 / (C_00 C_thetatheta) per g, against
+    /// the C1 term (k theta L)^2 / sinh^2(k theta L); reads a study file of its own
+    /// (`scenes/fig6a_memory_tilt.toml`) and writes `<name>.memory_tilt*.npy`, a JSON sidecar
+    /// and an SVG plot.
+    MemoryTilt(memory_tilt::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -122,6 +133,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Intensity(a) => intensity::run(&a),
         Command::G1(a) => g1::run(&a),
         Command::Map(a) => map::run(&a),
+        Command::Tracking(a) => tracking::run(&a),
         Command::Fields(a) => fields::run(&a),
         Command::FieldSequence(a) => field_sequence::run(&a),
         Command::Shaping(a) => shaping::run(&a),
@@ -131,6 +143,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mie(a) => mie::run(a),
         Command::FitPhase(a) => fit_phase::run(a),
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
+        Command::MemoryTilt(a) => memory_tilt::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

@@ -294,3 +294,45 @@ fn small_particles_at_high_od_follow_the_diffusion_curve() {
         }
     }
 }
+
+/// `speckle memory-tilt` (Bar et al. 2023, Fig. 6): its files and their shapes, `C(0) = 1`, the
+/// C1 column, and a bad key named with exit code 2 (the physics: `tests/memory_tilt.rs`).
+#[test]
+fn memory_tilt_writes_its_curves() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "wavelength_um = 0.5\nmean_free_path_um = 3000.0\nthickness_um = 6000.0\n\
+                 g = [0.0, 0.9]\nk_theta_l = [0.0, 1.0, 2.0]\n\n[render]\npaths = 400\n\
+                 groups = 4\n";
+    let p = dir.path().join("t.toml");
+    std::fs::write(&p, study).unwrap();
+    let o = speckle(
+        dir.path(),
+        &["memory-tilt", p.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let (shape, c) = load_f8(&out.join("t.memory_tilt.npy"));
+    assert_eq!(shape, vec![2, 3]);
+    assert_eq!((c[0], c[3]), (1.0, 1.0));
+    assert_eq!(load_f8(&out.join("t.memory_tilt_stderr.npy")).0, vec![2, 3]);
+    let (_, c1) = load_f8(&out.join("t.memory_tilt_c1.npy"));
+    for (x, v) in [0.0, 1.0, 2.0].iter().zip(&c1) {
+        assert!((v - eq39(*x)).abs() < 1e-12, "{x}: {v}");
+    }
+    assert_eq!(load_f8(&out.join("t.memory_tilt_g.npy")).1, vec![0.0, 0.9]);
+    assert_eq!(
+        load_f8(&out.join("t.memory_tilt_angles_mdeg.npy")).0,
+        vec![3]
+    );
+    assert_eq!(
+        load_f8(&out.join("t.memory_tilt_c1_extrapolated.npy")).0,
+        vec![2, 3]
+    );
+    let svg = std::fs::read_to_string(out.join("t.memory_tilt.svg")).unwrap();
+    assert!(svg.contains("g = 0.9") && svg.contains("C1 (diffusion)"));
+    assert!(out.join("t.memory_tilt.json").exists());
+    std::fs::write(&p, study.replace("g = [0.0, 0.9]", "g = [0.0, 1.5]")).unwrap();
+    let o = speckle(dir.path(), &["memory-tilt", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("g[1]"), "{}", stderr(&o));
+}

@@ -344,3 +344,68 @@ fn shaping_writes_its_curves_and_names_bad_settings() {
         assert!(stderr(&o).contains(field), "{}", stderr(&o));
     }
 }
+
+/// `speckle tracking`: its first curve is bitwise the correlation of `speckle g1`, the files
+/// and plot are written with the documented shapes, and what it cannot track exits with code 2
+/// naming the field (the statistics are checked in `tests/tracking.rs`).
+#[test]
+fn tracking_writes_three_curves_and_names_bad_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let points = SCENE
+        .replace(
+            "type = \"plane\"\ndirection = [0.0, 0.0, 1.0]",
+            "type = \"point\"\nposition = [-1.0, 0.0, -4.0]",
+        )
+        .replace(
+            "[[sensors]]\ntype = \"far\"\ndirection = [0.3, 0.0, 1.0]\n",
+            "",
+        )
+        .replace(
+            "type = \"far\"\ndirection = [0.0, 0.0, 1.0]",
+            "type = \"point\"\nposition = [1.0, 0.0, 4.0]",
+        );
+    let motion = "\n[motion]\ndiffusion = 0.002\ndrift = [0.3, 0.0, 0.0]\nlags = [0.0, 1.0, 2.0]\n";
+    let scene = write(dir.path(), "m.toml", &format!("{points}{motion}"));
+    let s = scene.to_str().unwrap();
+    let o = speckle(dir.path(), &["tracking", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("largest deviation"), "{}", stdout(&o));
+    let o = speckle(dir.path(), &["g1", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    // (3, L) complex: curve c, lag l at 2 (c L + l).
+    let t = npy_f64(&out.join("m.tracking_correlation.npy"));
+    let g = npy_f64(&out.join("m.correlation.npy"));
+    assert_eq!(t.len(), 2 * 3 * 3);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&t[..6]), bits(&g));
+    assert_eq!(
+        npy_f64(&out.join("m.tracking_lags.npy")),
+        vec![0.0, 1.0, 2.0]
+    );
+    let n = npy_f64(&out.join("m.tracking_normalised.npy"));
+    assert_eq!(n[6], 1.0, "the U = 0 curve is normalised by its zero lag");
+    let svg = std::fs::read_to_string(out.join("m.tracking.svg")).unwrap();
+    assert!(
+        svg.contains("no tracking") && svg.contains("U = 0"),
+        "{svg}"
+    );
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("m.tracking.json")).unwrap())
+            .unwrap();
+    assert_eq!(meta["files"]["shape"], serde_json::json!([3, 3]));
+    assert!(meta["summary"]["max_deviation_tracking_vs_u0_in_combined_se"].is_number());
+    for (text, field) in [
+        (
+            format!("{points}{motion}").replace("drift = [0.3, 0.0, 0.0]\n", ""),
+            "motion.drift",
+        ),
+        (format!("{SCENE}{motion}"), "sensors"),
+        (points.clone(), "motion"),
+    ] {
+        let bad = write(dir.path(), "bad.toml", &text);
+        let o = speckle(dir.path(), &["tracking", bad.to_str().unwrap(), "-q"]);
+        assert_eq!(o.status.code(), Some(2), "{field}");
+        assert!(stderr(&o).contains(field), "{field}: {}", stderr(&o));
+    }
+}

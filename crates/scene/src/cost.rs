@@ -175,6 +175,19 @@ pub fn covariance_seconds(paths: f64, vertices: f64, legs: f64, pairs: f64) -> f
     paths * vertices * (VERTEX_S + legs * LEG_S + pairs * PAIR_S + 0.5 * pairs * pairs * MAC_S)
 }
 
+/// Bytes and rough seconds per vertex of a correlation render of `j` entries at `lags` lags
+/// with `legs` endpoints: per lag, three estimates of every entry and the batches in flight;
+/// with drift both copies of every lag connect to every endpoint at both end vertices.
+fn g1_cost(j: f64, lags: f64, drift: bool, legs: f64, threads: f64) -> (f64, f64) {
+    let bytes = 16.0 * j * lags * (8.0 + 4.0 * threads);
+    let connects = if drift { 1.0 + 2.0 * lags } else { 2.0 };
+    let per_vertex_connect = legs * LEG_S + j * PAIR_S;
+    (
+        bytes,
+        VERTEX_S + connects * per_vertex_connect + 8.0 * j * lags * PAIR_S,
+    )
+}
+
 /// The commands whose cost [`Problem::estimate`] knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Command {
@@ -190,6 +203,10 @@ pub enum Command {
     Mean,
     /// `speckle g1` (temporal correlations of moving scatterers at `motion.lags`).
     G1,
+    /// `speckle tracking` (Bar et al. 2023, Fig. 9): the `g1` render of the scene's pair, the
+    /// same with the drift removed, and one render per lag of the pair against itself shifted
+    /// with the flow (two pairs and three times the endpoints, one lag each).
+    Tracking,
 }
 
 /// The optical extents of the medium along each axis, its albedo and its extinction, with a
@@ -307,7 +324,7 @@ impl Problem {
                 let s = self.png_scale(j, j)?;
                 Ok((1, (j * s) as f64 * (j * s) as f64))
             }
-            Command::Mean | Command::G1 => Ok((0, 0.0)),
+            Command::Mean | Command::G1 | Command::Tracking => Ok((0, 0.0)),
             Command::Intensity | Command::Fields => {
                 let Some(g) = self.png_grid() else {
                     return Ok((0, 0.0));
@@ -390,7 +407,9 @@ impl Problem {
             }
             // The mean has the near-field closed form; `g1` does not take beams yet.
             Command::Mean => Ok(()),
-            Command::G1 => speckle_endpoints::check_monte_carlo(sources, sensors),
+            Command::G1 | Command::Tracking => {
+                speckle_endpoints::check_monte_carlo(sources, sensors)
+            }
         }
         .map_err(|e| {
             let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
@@ -405,7 +424,11 @@ impl Problem {
         let fixed = self.medium_bytes() + self.endpoint_bytes() + 2.0 * png_pixels;
         let traced = matches!(
             command,
-            Command::Covariance | Command::Intensity | Command::Fields | Command::G1
+            Command::Covariance
+                | Command::Intensity
+                | Command::Fields
+                | Command::G1
+                | Command::Tracking
         );
         let vertices = if traced {
             self.check_path_length()?
@@ -434,18 +457,28 @@ impl Problem {
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::G1 => {
-                // Per lag, three estimates of J entries and the batches in flight; with drift
-                // both copies of every lag connect to every endpoint at both end vertices.
                 let (lags, drift) = self
                     .motion
                     .as_ref()
                     .map_or((1.0, false), |m| (m.lags.len() as f64, m.model.has_drift()));
-                let bytes = 16.0 * j * lags * (8.0 + 4.0 * threads);
-                let connects = if drift { 1.0 + 2.0 * lags } else { 2.0 };
-                let per_path =
-                    vertices * (VERTEX_S + connects * per_vertex_connect + 8.0 * j * lags * PAIR_S);
+                let (bytes, per_vertex) = g1_cost(j, lags, drift, legs, threads);
                 (
                     bytes,
+                    "motion.lags",
+                    vertices * per_vertex * r.paths as f64,
+                    "render.paths",
+                )
+            }
+            Command::Tracking => {
+                // The pair's g1 with and without drift (all lags), and per lag a render of two
+                // pairs (the pair and its shifted copy) at that lag alone.
+                let lags = self.motion.as_ref().map_or(1.0, |m| m.lags.len() as f64);
+                let (b1, drifting) = g1_cost(j, lags, true, legs, threads);
+                let (_, rest) = g1_cost(j, lags, false, legs, threads);
+                let (b2, shifted) = g1_cost(2.0 * j, 1.0, true, 3.0 * legs, threads);
+                let per_path = vertices * (drifting + rest + lags * shifted);
+                (
+                    b1.max(b2),
                     "motion.lags",
                     per_path * r.paths as f64,
                     "render.paths",

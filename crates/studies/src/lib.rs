@@ -3,7 +3,8 @@
 //! bars and their theory, as plain data that a caller writes or plots.
 //!
 //! - [`memory`]: the memory effect versus wavelength for Mie spheres in a slab (Bar et al. 2019,
-//!   Fig. 11), against diffusion theory (Eq. 39);
+//!   Fig. 11), against diffusion theory (Eq. 39), and against the tilt for a sweep of `g` (Bar
+//!   et al. 2023, Fig. 6, `memory::TiltStudy`), against the C1 term;
 //! - [`plot`]: its figure, an SVG drawn with `plotters`;
 //! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
 //! - [`shaping`]: dynamic wavefront shaping on sampled transmission-matrix sequences (Bar et

@@ -13,10 +13,12 @@ pub mod intensity;
 pub mod map;
 pub mod mean;
 pub mod memory_spectrum;
+pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
 pub mod shaping;
 pub mod single;
+pub mod tracking;
 pub mod wave;
 
 use crate::error::{self, InputError};

@@ -43,6 +43,7 @@
 
 mod render;
 mod study;
+mod tilt;
 
 pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,
@@ -51,4 +52,8 @@ pub use render::{
 pub use study::{
     Density, MAX_ANGLES, MAX_WAVELENGTHS, Study, StudyFile, StudyOutput, StudyOverrides,
     StudyRender, load_file, load_str,
+};
+pub use tilt::{
+    MAX_G, MAX_TILT_OPTICAL_DEPTH, MemoryTilt, TiltFile, TiltRow, TiltStudy, load_tilt_file,
+    load_tilt_str,
 };

@@ -1,7 +1,7 @@
 //! The bands (Mie spheres and slab coefficients per wavelength), the render of each band in
 //! independent groups, and the result as plain data.
 
-use super::study::{Density, Study};
+use super::study::{Density, Study, StudyRender};
 use crate::StudyError;
 use serde_json::{Value, json};
 use speckle_endpoints::{Pair, Sensor, Source};
@@ -87,32 +87,129 @@ impl Band {
     }
 }
 
+/// The tracer strategies of a memory-effect render in transmission through a slab lit along
+/// +z (see the module documentation): exponential depth and phase-sampled first direction
+/// with forward paths only, the library's defaults with forward and reversed paths.
+pub(crate) fn slab_tracer(coherence: Coherence) -> TracerConfig {
+    match coherence {
+        Coherence::ForwardOnly => TracerConfig {
+            first_vertex: FirstVertex::ExponentialDepth {
+                direction: DVec3::Z,
+            },
+            first_direction: FirstDirection::Phase { axis: DVec3::Z },
+            ..TracerConfig::default()
+        },
+        Coherence::ForwardAndReversed => TracerConfig::default(),
+    }
+}
+
+/// The tracer of [`slab_tracer`] as JSON, for sidecars.
+pub(crate) fn slab_tracer_json(coherence: Coherence) -> Value {
+    match coherence {
+        Coherence::ForwardOnly => json!({
+            "first_vertex": "exponential_depth along +z at sigma_t",
+            "first_direction": "phase function around +z",
+        }),
+        Coherence::ForwardAndReversed => json!({
+            "first_vertex": "uniform",
+            "first_direction": "uniform",
+        }),
+    }
+}
+
+/// The slab of a memory-effect render (`width x width x thickness`, centred at the origin),
+/// lit by plane waves tilted by `angles` and seen by far-field sensors at the same tilts,
+/// pairs `(i_n, v_n)`.
+pub(crate) fn tilt_scene(
+    width: f64,
+    thickness: f64,
+    sigma_s: f64,
+    sigma_a: f64,
+    phase: Phase,
+    wavelength: f64,
+    angles: &[f64],
+) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
+    let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
+        field: "medium".into(),
+        reason: e.to_string(),
+    };
+    let slab =
+        Aabb::centered(DVec3::ZERO, DVec3::new(width, width, thickness)).map_err(medium_error)?;
+    let medium = HomogeneousBox::new(slab, sigma_s, sigma_a).map_err(medium_error)?;
+    let dirs: Vec<DVec3> = angles.iter().map(|&t| tilted(t)).collect();
+    let sources = dirs
+        .iter()
+        .map(|&d| Source::plane_wave(d))
+        .collect::<Result<_, _>>()?;
+    let sensors = dirs
+        .iter()
+        .map(|&d| Sensor::far_field(d))
+        .collect::<Result<_, _>>()?;
+    let pairs = (0..dirs.len())
+        .map(|n| Pair {
+            source: n,
+            sensor: n,
+        })
+        .collect();
+    Ok(Scene::new(
+        medium, phase, wavelength, sources, sensors, pairs,
+    )?)
+}
+
+/// Renders `scene` (from [`tilt_scene`]) in `render.groups` independent covariance renders,
+/// group `g` seeded with `derive_seed(seed, w groups + g)`, and reduces them to the curve
+/// `C(theta_n) = |C_0n|^2 / (C_00 C_nn)` with jackknife standard errors.
+pub(crate) fn render_groups(
+    scene: &Scene<HomogeneousBox, Phase>,
+    r: &StudyRender,
+    w: usize,
+    progress: &dyn Progress,
+) -> Result<Curve, EstimatorError> {
+    let coherence = r.coherence.coherence();
+    let g = r.groups as u64;
+    let start = Instant::now();
+    let mut groups = Vec::with_capacity(r.groups);
+    for i in 0..g {
+        // Split the paths as evenly as possible.
+        let paths = r.paths / g + u64::from(i < r.paths % g);
+        let opts = CovarianceOptions {
+            paths,
+            seed: derive_seed(r.seed, w as u64 * g + i),
+            coherence,
+            sampling: slab_tracer(coherence),
+        };
+        let est = render_covariance(scene, &opts, progress)?;
+        let t = &est.total.value;
+        let n = t.rows();
+        groups.push(GroupSums {
+            paths: paths as f64,
+            row0: (0..n).map(|j| t.get(0, j)).collect(),
+            diag: (0..n).map(|j| t.get(j, j).re).collect(),
+            single00: est.single.value.get(0, 0).re,
+        });
+    }
+    let (c, se) = jackknife(groups.len(), |skip| GroupSums::correlation(&groups, skip));
+    let total: f64 = groups.iter().map(|g| g.paths).sum();
+    let mean =
+        |f: &dyn Fn(&GroupSums) -> f64| groups.iter().map(|g| f(g) * g.paths).sum::<f64>() / total;
+    let intensity = mean(&|g| g.diag[0]);
+    Ok(Curve {
+        c,
+        se,
+        single_fraction: mean(&|g| g.single00) / intensity,
+        intensity,
+        wall: start.elapsed().as_secs_f64(),
+    })
+}
+
 impl Study {
     /// The tracer strategies of the estimator (see the module documentation).
     pub fn tracer(&self) -> TracerConfig {
-        match self.coherence() {
-            Coherence::ForwardOnly => TracerConfig {
-                first_vertex: FirstVertex::ExponentialDepth {
-                    direction: DVec3::Z,
-                },
-                first_direction: FirstDirection::Phase { axis: DVec3::Z },
-                ..TracerConfig::default()
-            },
-            Coherence::ForwardAndReversed => TracerConfig::default(),
-        }
+        slab_tracer(self.coherence())
     }
 
     fn tracer_json(&self) -> Value {
-        match self.coherence() {
-            Coherence::ForwardOnly => json!({
-                "first_vertex": "exponential_depth along +z at sigma_t",
-                "first_direction": "phase function around +z",
-            }),
-            Coherence::ForwardAndReversed => json!({
-                "first_vertex": "uniform",
-                "first_direction": "uniform",
-            }),
-        }
+        slab_tracer_json(self.coherence())
     }
 
     /// The sphere at vacuum wavelength `lambda`; `field` names the input that set `lambda`.
@@ -264,40 +361,16 @@ impl Study {
     /// The library scene at one wavelength: the slab, plane waves tilted by the study's angles
     /// and far-field sensors at the same tilts, pairs `(i_n, v_n)`.
     pub fn scene(&self, band: &Band) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
-        let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
-            field: "medium".into(),
-            reason: e.to_string(),
-        };
-        let slab = Aabb::centered(
-            DVec3::ZERO,
-            DVec3::new(self.width, self.width, self.thickness),
-        )
-        .map_err(medium_error)?;
-        let medium = HomogeneousBox::new(slab, band.sigma_s, band.sigma_a).map_err(medium_error)?;
-        let dirs: Vec<DVec3> = self.angles.iter().map(|&t| tilted(t)).collect();
-        let sources = dirs
-            .iter()
-            .map(|&d| Source::plane_wave(d))
-            .collect::<Result<_, _>>()?;
-        let sensors = dirs
-            .iter()
-            .map(|&d| Sensor::far_field(d))
-            .collect::<Result<_, _>>()?;
-        let pairs = (0..dirs.len())
-            .map(|n| Pair {
-                source: n,
-                sensor: n,
-            })
-            .collect();
-        Ok(Scene::new(
-            medium,
+        tilt_scene(
+            self.width,
+            self.thickness,
+            band.sigma_s,
+            band.sigma_a,
             band.phase.clone(),
             // The wavelength in the host: k = 2 pi n_host / lambda.
             band.lambda / self.host,
-            sources,
-            sensors,
-            pairs,
-        )?)
+            &self.angles,
+        )
     }
 
     /// Renders every band (`bands` from [`Study::prepare`]): `render.groups` independent
@@ -338,43 +411,7 @@ impl Study {
         w: usize,
         progress: &dyn Progress,
     ) -> Result<Curve, EstimatorError> {
-        let scene = self.scene(band)?;
-        let r = &self.file.render;
-        let g = r.groups as u64;
-        let start = Instant::now();
-        let mut groups = Vec::with_capacity(r.groups);
-        for i in 0..g {
-            // Split the paths as evenly as possible.
-            let paths = r.paths / g + u64::from(i < r.paths % g);
-            let opts = CovarianceOptions {
-                paths,
-                seed: derive_seed(r.seed, w as u64 * g + i),
-                coherence: self.coherence(),
-                sampling: self.tracer(),
-            };
-            let est = render_covariance(&scene, &opts, progress)?;
-            let t = &est.total.value;
-            let n = t.rows();
-            groups.push(GroupSums {
-                paths: paths as f64,
-                row0: (0..n).map(|j| t.get(0, j)).collect(),
-                diag: (0..n).map(|j| t.get(j, j).re).collect(),
-                single00: est.single.value.get(0, 0).re,
-            });
-        }
-        let (c, se) = jackknife(groups.len(), |skip| GroupSums::correlation(&groups, skip));
-        let total: f64 = groups.iter().map(|g| g.paths).sum();
-        let mean = |f: &dyn Fn(&GroupSums) -> f64| {
-            groups.iter().map(|g| f(g) * g.paths).sum::<f64>() / total
-        };
-        let intensity = mean(&|g| g.diag[0]);
-        Ok(Curve {
-            c,
-            se,
-            single_fraction: mean(&|g| g.single00) / intensity,
-            intensity,
-            wall: start.elapsed().as_secs_f64(),
-        })
+        render_groups(&self.scene(band)?, &self.file.render, w, progress)
     }
 }
 

@@ -97,7 +97,7 @@ pub struct StudyFile {
     pub output: StudyOutput,
 }
 
-fn default_lateral_factor() -> f64 {
+pub(crate) fn default_lateral_factor() -> f64 {
     100.0
 }
 
@@ -202,7 +202,7 @@ pub struct StudyOverrides {
 
 /// Reads the TOML document: syntax and type errors name the key path and the line; unknown
 /// and missing keys are named.
-fn parse(text: &str) -> Result<StudyFile, LoadError> {
+pub(crate) fn parse<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, LoadError> {
     load::parse_toml(
         text,
         load::KeyFinder {
@@ -226,7 +226,7 @@ pub fn load_str(
     default_name: &str,
     overrides: &StudyOverrides,
 ) -> Result<Study, LoadError> {
-    let mut file = parse(text).map_err(|e| e.in_document(origin))?;
+    let mut file: StudyFile = parse(text).map_err(|e| e.in_document(origin))?;
     // The study's own directory must stay below the current one; the command line's is the
     // user's choice.
     let access = speckle_scene::safe::Access {
@@ -244,7 +244,7 @@ pub fn load_str(
     validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
 }
 
-fn exactly_one(names: &[&str], set: &[bool]) -> Result<usize, SceneError> {
+pub(crate) fn exactly_one(names: &[&str], set: &[bool]) -> Result<usize, SceneError> {
     let chosen: Vec<usize> = (0..names.len()).filter(|&i| set[i]).collect();
     match chosen[..] {
         [i] => Ok(i),
@@ -261,6 +261,83 @@ fn exactly_one(names: &[&str], set: &[bool]) -> Result<usize, SceneError> {
             "exactly one may be given",
         )),
     }
+}
+
+/// The tilts of a study, in radians, from exactly one of `(name, values)` (in the unit that
+/// `unit` converts to radians) and `k_theta_l` (converted by `ktl`): at least 2 and at most
+/// [`MAX_ANGLES`] values, strictly increasing from 0, below 90 degrees; errors name the entry.
+pub(crate) fn tilts(
+    (name, values): (&str, Option<&[f64]>),
+    k_theta_l: Option<&[f64]>,
+    unit: f64,
+    ktl: f64,
+) -> Result<Vec<f64>, SceneError> {
+    let (angle_field, given, scale) = match exactly_one(
+        &[name, "k_theta_l"],
+        &[values.is_some(), k_theta_l.is_some()],
+    )? {
+        0 => (name, values.unwrap_or_default(), unit),
+        _ => ("k_theta_l", k_theta_l.unwrap_or_default(), ktl),
+    };
+    if given.len() < 2 || given.len() > MAX_ANGLES {
+        return Err(bad(
+            angle_field,
+            format!("must list 2 to {MAX_ANGLES} values (got {})", given.len()),
+        ));
+    }
+    let mut angles = Vec::with_capacity(given.len());
+    for (i, &a) in given.iter().enumerate() {
+        let field = format!("{angle_field}[{i}]");
+        if !a.is_finite() {
+            return Err(bad(field, format!("must be finite (got {a})")));
+        }
+        if i == 0 && a != 0.0 {
+            return Err(bad(
+                field,
+                format!("must be 0: the correlation is taken with the untilted pair (got {a})"),
+            ));
+        }
+        if i > 0 && a <= given[i - 1] {
+            return Err(bad(
+                field,
+                format!("must be greater than the previous value (got {a})"),
+            ));
+        }
+        let theta = a * scale;
+        if theta >= 0.5 * PI {
+            return Err(bad(
+                field,
+                format!(
+                    "the tilt must be below 90 degrees (got {} degrees)",
+                    theta.to_degrees()
+                ),
+            ));
+        }
+        angles.push(theta);
+    }
+    Ok(angles)
+}
+
+/// Checks `[render]` of a study: `groups` in 2..=1024, at least 2 paths per group.
+pub(crate) fn check_render(r: &StudyRender) -> Result<(), SceneError> {
+    if !(2..=1024).contains(&r.groups) {
+        return Err(bad(
+            "render.groups",
+            format!("must be in 2..=1024 (got {})", r.groups),
+        ));
+    }
+    if r.paths < 2 * r.groups as u64 {
+        return Err(bad(
+            "render.paths",
+            format!(
+                "must be at least 2 per group, {} with render.groups = {} (got {})",
+                2 * r.groups,
+                r.groups,
+                r.paths
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn validate(file: StudyFile, origin: &str, default_name: &str) -> Result<Study, SceneError> {
@@ -366,73 +443,13 @@ fn validate(file: StudyFile, origin: &str, default_name: &str) -> Result<Study, 
             "is only used with optical_depth",
         ));
     }
-    let (angle_field, given) = match exactly_one(
-        &["angles_deg", "k_theta_l"],
-        &[file.angles_deg.is_some(), file.k_theta_l.is_some()],
-    )? {
-        0 => ("angles_deg", file.angles_deg.clone().unwrap_or_default()),
-        _ => ("k_theta_l", file.k_theta_l.clone().unwrap_or_default()),
-    };
-    if given.len() < 2 || given.len() > MAX_ANGLES {
-        return Err(bad(
-            angle_field,
-            format!("must list 2 to {MAX_ANGLES} values (got {})", given.len()),
-        ));
-    }
-    // theta = (k theta L) / (k_1 L) with the host wavenumber at the first wavelength.
-    let scale = if angle_field == "angles_deg" {
-        PI / 180.0
-    } else {
-        wavelengths[0] / (TAU * host * thickness)
-    };
-    let mut angles = Vec::with_capacity(given.len());
-    for (i, &a) in given.iter().enumerate() {
-        let field = format!("{angle_field}[{i}]");
-        if !a.is_finite() {
-            return Err(bad(field, format!("must be finite (got {a})")));
-        }
-        if i == 0 && a != 0.0 {
-            return Err(bad(
-                field,
-                format!("must be 0: the correlation is taken with the untilted pair (got {a})"),
-            ));
-        }
-        if i > 0 && a <= given[i - 1] {
-            return Err(bad(
-                field,
-                format!("must be greater than the previous value (got {a})"),
-            ));
-        }
-        let theta = a * scale;
-        if theta >= 0.5 * PI {
-            return Err(bad(
-                field,
-                format!(
-                    "the tilt must be below 90 degrees (got {} degrees)",
-                    theta.to_degrees()
-                ),
-            ));
-        }
-        angles.push(theta);
-    }
-    let r = &file.render;
-    if !(2..=1024).contains(&r.groups) {
-        return Err(bad(
-            "render.groups",
-            format!("must be in 2..=1024 (got {})", r.groups),
-        ));
-    }
-    if r.paths < 2 * r.groups as u64 {
-        return Err(bad(
-            "render.paths",
-            format!(
-                "must be at least 2 per group, {} with render.groups = {} (got {})",
-                2 * r.groups,
-                r.groups,
-                r.paths
-            ),
-        ));
-    }
+    let angles = tilts(
+        ("angles_deg", file.angles_deg.as_deref()),
+        file.k_theta_l.as_deref(),
+        PI / 180.0,
+        wavelengths[0] / (TAU * host * thickness),
+    )?;
+    check_render(&file.render)?;
     Ok(Study {
         name,
         origin: origin.to_string(),

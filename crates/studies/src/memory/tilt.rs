@@ -1,0 +1,490 @@
+//! The memory effect against the tilt for a sweep of the anisotropy `g` at one wavelength and a
+//! fixed mean free path (Bar et al. 2023, Sec. 6, Fig. 6), the study of `speckle memory-tilt`,
+//! against the C1 term of Feng, Kane, Lee and Stone 1988 (the paper's ref. [5]).
+//!
+//! A lossless slab, `L` thick along z and `lateral_factor L` wide, of Henyey-Greenstein
+//! scatterers of mean cosine `g` and mean free path `l` (the same for every `g`, so the transport
+//! mean free path `l* = l / (1 - g)` varies), is lit by plane waves `i_n` tilted by `theta_n`
+//! from +z about +y and seen in transmission by far-field sensors `v_n = i_n`, the geometry of
+//! [`super::Study`] (one curve per `g` instead of per wavelength, same render, same jackknife):
+//! the normalised intensity correlation (Siegert) `C(theta_n) = |C_0n|^2 / (C_00 C_nn)` of the
+//! pairs `(i_0, v_0)` and `(i_n, v_n)`, the paper's `|C^{i, i + dtheta}_{v, v + dtheta}|^2`
+//! normalised to 1 at `dtheta = 0`.
+//!
+//! Theory (the C1 term in the diffusion limit, `L >> l*`): `C1(theta) = (k theta L)^2 /
+//! sinh^2(k theta L)` with `k = 2 pi / lambda` (Bar et al. 2019, Eq. 39, which quotes it from
+//! Feng et al. 1988; `shared/notes/spatiotemporal-2023.md` Sec. 8.2). The outputs also give it
+//! with `L` replaced by `L + 2 z_e`, `z_e = 0.7104 l*` (the Milne extrapolation length of the
+//! diffusion solution), per `g`: the spread of the two is the model's uncertainty at finite
+//! thickness (`tests/memory_effect.rs`). The paper's finding: for the thinner slab the Monte
+//! Carlo curve agrees with C1 at `g = 0` only (the diffusion limit is not reached for large
+//! `g`); for the thicker one also at `g = 0.9`.
+
+use super::render::{Curve, MILNE_ZE, eq39, render_groups, slab_tracer_json, tilt_scene};
+use super::study::{
+    StudyOutput, StudyOverrides, StudyRender, check_render, default_lateral_factor, parse, tilts,
+};
+use crate::StudyError;
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+use speckle_estimators::{EstimatorError, Progress, Scene};
+use speckle_medium::HomogeneousBox;
+use speckle_phase::Phase;
+use speckle_scene::validate::{invalid as bad, positive};
+use speckle_scene::{LoadError, SceneError, load};
+use std::f64::consts::{PI, TAU};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// Most values of `g` a study may list.
+pub const MAX_G: usize = 16;
+
+/// Largest extinction optical depth `L / l` rendered (the cost grows with it).
+pub const MAX_TILT_OPTICAL_DEPTH: f64 = 200.0;
+
+/// A memory-tilt study file (TOML, unknown keys rejected). Lengths in micrometres.
+///
+/// ```toml
+/// name = "fig6a"                  # output prefix (default: the file's stem)
+/// wavelength_um = 0.5             # wavelength in the medium
+/// mean_free_path_um = 3000.0      # l = 1 / sigma_s (lossless), the same for every g
+/// thickness_um = 30000.0          # slab thickness L
+/// lateral_factor = 100.0          # slab width / L (default 100, at least 1)
+/// g = [0.0, 0.9, 0.95]            # Henyey-Greenstein mean cosines, one curve each
+/// # the tilts, exactly one of (strictly increasing from 0):
+/// #   angles_mdeg = [0.0, 0.05, ...]   (millidegrees)
+/// #   k_theta_l = [0.0, 0.5, ...]      (k theta L, k = 2 pi / wavelength_um)
+/// k_theta_l = [0.0, 0.5, 1.0]
+///
+/// [render]
+/// paths = 400000                  # sub-paths per g, split over the groups
+/// seed = 1
+/// groups = 16                     # independent renders per g (jackknife)
+/// coherence = "forward_only"      # or "forward_and_reversed"
+///
+/// [output]
+/// dir = "out"
+/// ```
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TiltFile {
+    /// Output prefix (default: the stem of the file name).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Wavelength in the medium, micrometres.
+    pub wavelength_um: f64,
+    /// Mean free path `l = 1 / sigma_s` (lossless), micrometres.
+    pub mean_free_path_um: f64,
+    /// Slab thickness `L`, micrometres.
+    pub thickness_um: f64,
+    /// Slab width over thickness.
+    #[serde(default = "default_lateral_factor")]
+    pub lateral_factor: f64,
+    /// Henyey-Greenstein mean cosines.
+    pub g: Vec<f64>,
+    /// Tilts in millidegrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angles_mdeg: Option<Vec<f64>>,
+    /// Tilts as `k theta L`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k_theta_l: Option<Vec<f64>>,
+    /// `[render]`.
+    #[serde(default)]
+    pub render: StudyRender,
+    /// `[output]`.
+    #[serde(default)]
+    pub output: StudyOutput,
+}
+
+/// A validated memory-tilt study.
+#[derive(Debug, Clone)]
+pub struct TiltStudy {
+    /// The document as parsed, with the command-line values filled in.
+    pub file: TiltFile,
+    /// Output prefix.
+    pub name: String,
+    /// Where the study came from.
+    pub origin: String,
+    /// Wavelength, micrometres.
+    pub wavelength: f64,
+    /// Mean free path, micrometres.
+    pub mean_free_path: f64,
+    /// Slab thickness `L`, micrometres.
+    pub thickness: f64,
+    /// Slab width, micrometres.
+    pub width: f64,
+    /// The mean cosines, one curve each.
+    pub gs: Vec<f64>,
+    /// Tilts, radians, `theta_0 = 0`.
+    pub angles: Vec<f64>,
+}
+
+/// Loads and validates a memory-tilt study file.
+pub fn load_tilt_file(path: &Path, overrides: &StudyOverrides) -> Result<TiltStudy, LoadError> {
+    let (text, stem) = load::read_input(path, "study")?;
+    load_tilt_str(&text, &path.display().to_string(), &stem, overrides)
+}
+
+/// Loads and validates a memory-tilt study from its text: `origin` names it in errors,
+/// `default_name` is the output prefix when the study sets none.
+pub fn load_tilt_str(
+    text: &str,
+    origin: &str,
+    default_name: &str,
+    overrides: &StudyOverrides,
+) -> Result<TiltStudy, LoadError> {
+    let mut file: TiltFile = parse(text).map_err(|e| e.in_document(origin))?;
+    let access = speckle_scene::safe::Access {
+        inputs_outside: false,
+        output_outside: overrides.allow_outside || overrides.out.is_some(),
+    };
+    speckle_scene::safe::output_dir("output.dir", &file.output.dir, access)
+        .map_err(|e| LoadError::from(e).in_document(origin))?;
+    let r = &mut file.render;
+    r.paths = overrides.paths.unwrap_or(r.paths);
+    r.seed = overrides.seed.unwrap_or(r.seed);
+    if let Some(out) = &overrides.out {
+        file.output.dir = out.clone();
+    }
+    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+}
+
+fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStudy, SceneError> {
+    let name = file
+        .name
+        .clone()
+        .unwrap_or_else(|| default_name.to_string());
+    speckle_scene::validate::name(&name)?;
+    let wavelength = positive("wavelength_um", file.wavelength_um)?;
+    let mfp = positive("mean_free_path_um", file.mean_free_path_um)?;
+    let thickness = positive("thickness_um", file.thickness_um)?;
+    let lateral = positive("lateral_factor", file.lateral_factor)?;
+    if lateral < 1.0 {
+        return Err(bad(
+            "lateral_factor",
+            format!("must be >= 1: the slab is at least as wide as it is thick (got {lateral})"),
+        ));
+    }
+    let od = thickness / mfp;
+    if od > MAX_TILT_OPTICAL_DEPTH {
+        return Err(bad(
+            "thickness_um",
+            format!(
+                "gives an optical depth L / l of {od:.4e}; at most {MAX_TILT_OPTICAL_DEPTH} can \
+                 be rendered"
+            ),
+        ));
+    }
+    if file.g.is_empty() || file.g.len() > MAX_G {
+        return Err(bad(
+            "g",
+            format!("must list 1 to {MAX_G} values (got {})", file.g.len()),
+        ));
+    }
+    for (i, &g) in file.g.iter().enumerate() {
+        if !(g.is_finite() && (0.0..1.0).contains(&g)) {
+            return Err(bad(
+                format!("g[{i}]"),
+                format!("must be in [0, 1) (got {g})"),
+            ));
+        }
+    }
+    let angles = tilts(
+        ("angles_mdeg", file.angles_mdeg.as_deref()),
+        file.k_theta_l.as_deref(),
+        PI / 180.0 / 1000.0,
+        wavelength / (TAU * thickness),
+    )?;
+    check_render(&file.render)?;
+    Ok(TiltStudy {
+        name,
+        origin: origin.to_string(),
+        wavelength,
+        mean_free_path: mfp,
+        thickness,
+        width: lateral * thickness,
+        gs: file.g.clone(),
+        angles,
+        file,
+    })
+}
+
+impl TiltStudy {
+    /// Wavenumber `k = 2 pi / lambda`, per micrometre.
+    pub fn k(&self) -> f64 {
+        TAU / self.wavelength
+    }
+
+    /// `k theta L` of each tilt.
+    pub fn k_theta_l(&self) -> Vec<f64> {
+        let kl = self.k() * self.thickness;
+        self.angles.iter().map(|t| kl * t).collect()
+    }
+
+    /// The transport mean free path `l / (1 - g)` of row `g`.
+    pub fn transport_mfp(&self, g: f64) -> f64 {
+        self.mean_free_path / (1.0 - g)
+    }
+
+    /// The library scene of one `g` (row `w`, naming `g[w]` in errors).
+    pub fn scene(&self, w: usize) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
+        let phase = Phase::hg(self.gs[w]).map_err(|e| EstimatorError::InvalidInput {
+            field: format!("g[{w}]"),
+            reason: e.to_string(),
+        })?;
+        tilt_scene(
+            self.width,
+            self.thickness,
+            1.0 / self.mean_free_path,
+            0.0,
+            phase,
+            self.wavelength,
+            &self.angles,
+        )
+    }
+
+    /// The rough cost on `threads` threads (as [`super::Study::estimate`]).
+    pub fn estimate(&self, threads: usize) -> speckle_scene::cost::Estimate {
+        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        let n = self.angles.len() as f64;
+        let paths = self.file.render.paths as f64;
+        let t = 1.0 / self.mean_free_path;
+        let taus = [t * self.width, t * self.width, t * self.thickness];
+        let seconds: f64 = self
+            .gs
+            .iter()
+            .map(|&g| {
+                let v =
+                    expected_vertices(&taus, 1.0, g, speckle_medium::Dimension::Three, u32::MAX);
+                covariance_seconds(paths, v, 2.0 * n, n)
+            })
+            .sum();
+        let groups = self.file.render.groups as f64;
+        speckle_scene::cost::Estimate {
+            bytes: 16.0 * n * n * (8.0 + 4.0 * threads as f64) * groups.min(4.0)
+                + 1e6 * self.gs.len() as f64,
+            memory_field: "k_theta_l".into(),
+            seconds: seconds / threads.max(1) as f64,
+            time_field: "render.paths".into(),
+            vertices_per_path: 0.0,
+        }
+    }
+
+    /// Renders every `g`: `render.groups` independent covariance renders each, group `i` of
+    /// row `w` seeded with `derive_seed(seed, w groups + i)`; `progress` counts paths over all.
+    pub fn render(&self, progress: &dyn Progress) -> Result<MemoryTilt, StudyError> {
+        let start = Instant::now();
+        let x = self.k_theta_l();
+        let mut rows = Vec::with_capacity(self.gs.len());
+        for (w, &g) in self.gs.iter().enumerate() {
+            let curve = render_groups(&self.scene(w)?, &self.file.render, w, progress)?;
+            let leff = self.thickness + 2.0 * MILNE_ZE * self.transport_mfp(g);
+            rows.push(TiltRow {
+                g,
+                extrapolated: x.iter().map(|&x| eq39(x * leff / self.thickness)).collect(),
+                curve,
+            });
+        }
+        Ok(MemoryTilt {
+            c1: x.iter().map(|&x| eq39(x)).collect(),
+            k_theta_l: x,
+            rows,
+            wall: start.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// One `g` of a [`MemoryTilt`].
+#[derive(Debug, Clone)]
+pub struct TiltRow {
+    /// The mean cosine.
+    pub g: f64,
+    /// The Monte Carlo curve.
+    pub curve: Curve,
+    /// C1 with `L + 2 z_e`, `z_e = 0.7104 l / (1 - g)`.
+    pub extrapolated: Vec<f64>,
+}
+
+/// The result of a memory-tilt study.
+#[derive(Debug, Clone)]
+pub struct MemoryTilt {
+    /// One row per `g`, in the study's order.
+    pub rows: Vec<TiltRow>,
+    /// `k theta L` of each tilt.
+    pub k_theta_l: Vec<f64>,
+    /// C1, `(k theta L)^2 / sinh^2(k theta L)`, per tilt.
+    pub c1: Vec<f64>,
+    /// Wall time, seconds.
+    pub wall: f64,
+}
+
+impl MemoryTilt {
+    /// The output arrays (float64, C order): `(key, shape, data, content)`.
+    pub fn arrays(&self, s: &TiltStudy) -> Vec<super::Array> {
+        let (ng, na) = (self.rows.len(), s.angles.len());
+        let stack = |f: &dyn Fn(&TiltRow) -> &[f64]| -> Vec<f64> {
+            self.rows
+                .iter()
+                .flat_map(|r| f(r).iter().copied())
+                .collect()
+        };
+        vec![
+            super::Array {
+                key: "memory_tilt",
+                shape: vec![ng, na],
+                data: stack(&|r| &r.curve.c),
+                content: "(n_g, n_angles): C(theta) = |C_0n|^2 / (C_00 C_nn), Monte Carlo",
+            },
+            super::Array {
+                key: "memory_tilt_stderr",
+                shape: vec![ng, na],
+                data: stack(&|r| &r.curve.se),
+                content: "(n_g, n_angles): its jackknife standard error over render.groups \
+                          independent renders",
+            },
+            super::Array {
+                key: "memory_tilt_c1",
+                shape: vec![na],
+                data: self.c1.clone(),
+                content: "(n_angles,): the C1 term in the diffusion limit, (k theta L)^2 / \
+                          sinh^2(k theta L), k = 2 pi / wavelength_um, L = thickness_um",
+            },
+            super::Array {
+                key: "memory_tilt_c1_extrapolated",
+                shape: vec![ng, na],
+                data: stack(&|r| &r.extrapolated),
+                content: "(n_g, n_angles): C1 with L replaced by L + 2 z_e, z_e = 0.7104 l / \
+                          (1 - g) (Milne)",
+            },
+            super::Array {
+                key: "memory_tilt_angles_mdeg",
+                shape: vec![na],
+                data: s.angles.iter().map(|t| t.to_degrees() * 1000.0).collect(),
+                content: "(n_angles,): theta in millidegrees, the tilt of both the plane wave \
+                          and the sensor from +z about +y",
+            },
+            super::Array {
+                key: "memory_tilt_g",
+                shape: vec![ng],
+                data: s.gs.clone(),
+                content: "(n_g,): the Henyey-Greenstein mean cosine of each row",
+            },
+        ]
+    }
+
+    /// The figure: one curve per `g` with its error bars, and C1, against the tilt in
+    /// millidegrees.
+    pub fn figure(&self, s: &TiltStudy) -> crate::curves::Figure {
+        use crate::curves::{Curve as Line, Figure};
+        let mdeg: Vec<f64> = s.angles.iter().map(|t| t.to_degrees() * 1000.0).collect();
+        let mut curves: Vec<Line> = self
+            .rows
+            .iter()
+            .map(|r| Line {
+                label: format!("g = {}", r.g),
+                x: mdeg.clone(),
+                y: r.curve.c.clone(),
+                err: r.curve.se.clone(),
+            })
+            .collect();
+        curves.push(Line {
+            label: "C1 (diffusion)".into(),
+            x: mdeg,
+            y: self.c1.clone(),
+            err: vec![],
+        });
+        Figure {
+            title: format!(
+                "{}: memory effect against the tilt (Bar et al. 2023, Fig. 6)",
+                s.name
+            ),
+            subtitle: format!(
+                "L = {} um, mean free path {} um, lambda = {} um; {} paths per g; error bars: \
+                 one jackknife SE",
+                s.thickness, s.mean_free_path, s.wavelength, s.file.render.paths
+            ),
+            x_label: "tilt d theta (millidegrees)".into(),
+            y_label: "|C(i, i + d theta; v, v + d theta)|^2, normalised".into(),
+            curves,
+        }
+    }
+
+    /// The terminal report.
+    pub fn text(&self, s: &TiltStudy) -> String {
+        let mut o = String::new();
+        for r in &self.rows {
+            let _ = writeln!(
+                o,
+                "{}: g = {}: transport optical depth L / l* = {:.3}; {:.1} s",
+                s.name,
+                r.g,
+                s.thickness / s.transport_mfp(r.g),
+                r.curve.wall
+            );
+            let _ = writeln!(
+                o,
+                "  {:>12}  {:>9}  {:>19}  {:>8}  {:>12}",
+                "theta (mdeg)", "k theta L", "C (MC) +- SE", "C1 (L)", "C1 (L+2ze)"
+            );
+            for n in 0..s.angles.len() {
+                let _ = writeln!(
+                    o,
+                    "  {:>12.5}  {:>9.4}  {:>9.4} +- {:<6.4}  {:>8.4}  {:>12.4}",
+                    s.angles[n].to_degrees() * 1000.0,
+                    self.k_theta_l[n],
+                    r.curve.c[n],
+                    r.curve.se[n],
+                    self.c1[n],
+                    r.extrapolated[n]
+                );
+            }
+        }
+        o
+    }
+
+    /// The JSON sidecar: the study as parsed, the geometry, the render settings, the curves
+    /// and the written `files`.
+    pub fn describe(&self, s: &TiltStudy, files: Value, threads: usize) -> Value {
+        let r = &s.file.render;
+        let coherence = r.coherence.coherence();
+        json!({
+            "command": "memory-tilt",
+            "study_file": s.origin,
+            "study": serde_json::to_value(&s.file).unwrap_or(Value::Null),
+            "geometry": {
+                "slab_um": [s.width, s.width, s.thickness],
+                "slab": "centred at the origin, thickness L along z, lossless, Henyey-Greenstein",
+                "sources": "plane waves exp(i k i_n . x), i_n tilted from +z towards +x by theta_n",
+                "sensors": "far field in the directions v_n = i_n: transmission",
+                "pairs": "(i_n, v_n), n = 0 .. n_angles - 1",
+            },
+            "theory": "C1 (Feng, Kane, Lee and Stone 1988, as Bar et al. 2019 Eq. 39 quotes it): \
+                       (k theta L)^2 / sinh^2(k theta L), valid for L >> l / (1 - g)",
+            "render": {
+                "paths_per_g": r.paths,
+                "groups": r.groups,
+                "seed": r.seed,
+                "group_seeds": "group i of row w renders with derive_seed(render.seed, w groups + i)",
+                "coherence": speckle_scene::build::render::coherence_name(coherence),
+                "tracer": slab_tracer_json(coherence),
+                "standard_errors": "jackknife over the groups (delete one group)",
+                "threads": threads,
+                "wall_time_s": self.wall,
+            },
+            "rows": self.rows.iter().map(|row| json!({
+                "g": row.g,
+                "transport_mean_free_path_um": s.transport_mfp(row.g),
+                "transport_optical_depth": s.thickness / s.transport_mfp(row.g),
+                "correlation": row.curve.c,
+                "correlation_stderr": row.curve.se,
+                "c1_extrapolated": row.extrapolated,
+                "single_scattering_fraction_c00": row.curve.single_fraction,
+                "wall_time_s": row.curve.wall,
+            })).collect::<Vec<_>>(),
+            "k_theta_l": self.k_theta_l,
+            "c1": self.c1,
+            "files": files,
+        })
+    }
+}
