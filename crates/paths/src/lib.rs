@@ -28,7 +28,7 @@ mod first;
 mod tracer;
 
 pub use factor::{FactorValue, NoFactor, PathFactor};
-pub use first::{FirstDirection, FirstVertex};
+pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
 pub use speckle_stats::PathRng;
 pub use tracer::{MAX_OUTSIDE_COMPONENTS, Tracer, TracerConfig, Vertex, VertexSink};
 
