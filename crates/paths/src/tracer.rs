@@ -12,6 +12,11 @@ use speckle_phase::PhaseFunction;
 /// ([`Tracer::with_point_endpoints`]).
 pub const MAX_OUTSIDE_COMPONENTS: usize = 64;
 
+/// Most beam components of the first-vertex mixture ([`Tracer::with_endpoints`]): with more
+/// distinct beams (a `gaussian_grid` camera), the sensors' beams are left out, and with more
+/// source beams than this, all are.
+pub const MAX_BEAM_COMPONENTS: usize = 16;
+
 /// How sub-paths are sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TracerConfig {
@@ -176,11 +181,11 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// every component: when more than [`MAX_OUTSIDE_COMPONENTS`] points are near, only those in
     /// or on the medium's box (which need it) get components.
     pub fn with_point_endpoints(self, points: &[DVec3], others: bool) -> Self {
-        self.with_endpoints(points, &[], 1.0, others)
+        self.with_endpoints(points, &[], &[], 1.0, others)
     }
 
-    /// [`Tracer::with_point_endpoints`] with, in addition, one component per focused Gaussian
-    /// beam of `beams` (sources, and sensors in their source form) when the configured
+    /// [`Tracer::with_point_endpoints`] with, in addition, one component per distinct focused
+    /// Gaussian beam of `sources` and `sensors` (in their source form) when the configured
     /// [`BeamStrategy`] is not `Off`, for wavenumber `k`: first vertices from the beam's
     /// Gaussian structure (Bar et al. 2020, Eqs. 33-36) and, with
     /// [`BeamStrategy::PositionAndDirection`], first directions from the vMF pair mixture of
@@ -188,11 +193,15 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// leave the volume strategy its share `1 / (n + 1)` (`n` components): the beam model is a
     /// proposal, not the throughput. The weights use the exact density of the whole mixture,
     /// evaluated for both orders of every path ([`Vertex::both_orders`]); unlike point
-    /// components, beams do not need reversed paths.
+    /// components, beams do not need reversed paths. Every vertex evaluates every beam's
+    /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' are kept (few
+    /// illuminators, many pixels: the paper samples the first segment for that reason), and
+    /// none beyond that many sources.
     pub fn with_endpoints(
         mut self,
         points: &[DVec3],
-        beams: &[Beam],
+        sources: &[Beam],
+        sensors: &[Beam],
         k: f64,
         others: bool,
     ) -> Self {
@@ -226,13 +235,21 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             near.retain(|(_, _, inside)| *inside);
         }
         let (near, rates): (Vec<_>, Vec<_>) = near.into_iter().map(|(p, r, _)| (p, r)).unzip();
-        let mut unique: Vec<Beam> = vec![];
-        if self.beams != BeamStrategy::Off {
-            for b in beams {
+        let distinct = |list: &[Beam]| {
+            let mut unique: Vec<Beam> = vec![];
+            for b in list {
                 if !unique.contains(b) {
                     unique.push(*b);
                 }
             }
+            unique
+        };
+        let mut unique = distinct(&[sources, sensors].concat());
+        if unique.len() > MAX_BEAM_COMPONENTS {
+            unique = distinct(sources);
+        }
+        if unique.len() > MAX_BEAM_COMPONENTS || self.beams == BeamStrategy::Off {
+            unique.clear();
         }
         let lobes = self.phases[0].amplitude_lobes();
         let directions = self.beams == BeamStrategy::PositionAndDirection;
@@ -542,6 +559,57 @@ mod tests {
             t().with_point_endpoints(&far, false).points.unwrap().volume,
             0.5
         );
+    }
+
+    #[test]
+    fn beam_components_are_distinct_capped_and_need_no_reversed_paths() {
+        let b = Aabb::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0)).unwrap();
+        let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+        let t = |beams| {
+            let cfg = TracerConfig {
+                beams,
+                ..TracerConfig::default()
+            };
+            Tracer::new(&m, &Phase::Isotropic, cfg).unwrap()
+        };
+        let beam = |x: f64| Beam {
+            focus: DVec3::new(x, 2.0, 0.0),
+            axis: DVec3::Z,
+            concentration: 16.0,
+        };
+        let k = std::f64::consts::TAU;
+        // A source and a sensor with the same source form count once; the volume keeps 1/(n+1).
+        let one =
+            t(BeamStrategy::Position).with_endpoints(&[], &[beam(1.0)], &[beam(1.0)], k, false);
+        assert!(!one.needs_reversed_paths());
+        let p = one.points.as_ref().unwrap();
+        assert_eq!((p.beams.len(), p.volume), (1, 0.5));
+        // Off: no mixture at all (the tracer is the plain one).
+        let off = t(BeamStrategy::Off).with_endpoints(&[], &[beam(1.0)], &[], k, true);
+        assert!(off.points.is_none());
+        // A camera of sensors beyond the cap: the sources' beams alone.
+        let camera: Vec<Beam> = (0..MAX_BEAM_COMPONENTS)
+            .map(|i| beam(0.1 * i as f64))
+            .collect();
+        let src = [beam(3.0), beam(3.5)];
+        let capped =
+            t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &camera, k, true);
+        assert_eq!(capped.points.as_ref().unwrap().beams.len(), 2);
+        let kept = t(BeamStrategy::PositionAndDirection).with_endpoints(
+            &[],
+            &src,
+            &camera[..MAX_BEAM_COMPONENTS - 2],
+            k,
+            true,
+        );
+        assert_eq!(
+            kept.points.as_ref().unwrap().beams.len(),
+            MAX_BEAM_COMPONENTS
+        );
+        // More sources than the cap: none.
+        let many_sources = [&camera[..], &src[..1]].concat();
+        let many = t(BeamStrategy::Position).with_endpoints(&[], &many_sources, &[], k, true);
+        assert!(many.points.is_none());
     }
 
     #[test]

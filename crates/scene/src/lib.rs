@@ -270,15 +270,17 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             axis: b.axis,
             concentration: b.concentration,
         };
-        let beams: Vec<Beam> = (self.sources.iter())
+        let source_beams: Vec<Beam> = (self.sources.iter())
             .filter_map(|s| match s {
                 Source::GaussianBeam(b) => Some(beam(b)),
                 _ => None,
             })
-            .chain(self.sensors.iter().filter_map(|s| match s {
+            .collect();
+        let sensor_beams: Vec<Beam> = (self.sensors.iter())
+            .filter_map(|s| match s {
                 Sensor::GaussianBeam(b) => Some(beam(&b.reversed())),
                 _ => None,
-            }))
+            })
             .collect();
         let k = self.wavenumber();
         let tracer = Tracer::with_types(&self.medium, &self.phases, sampling)
@@ -286,7 +288,13 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         match coherence {
             Coherence::ForwardAndReversed => {
                 let n = self.sources.len() + self.sensors.len();
-                Ok(tracer.with_endpoints(&points, &beams, k, points.len() < n))
+                Ok(tracer.with_endpoints(
+                    &points,
+                    &source_beams,
+                    &sensor_beams,
+                    k,
+                    points.len() < n,
+                ))
             }
             Coherence::ForwardOnly => match points.iter().find(|p| self.medium.contains(**p)) {
                 Some(p) => Err(invalid(
@@ -300,7 +308,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
                         p.to_array()
                     ),
                 )),
-                None => Ok(tracer.with_endpoints(&[], &beams, k, true)),
+                None => Ok(tracer.with_endpoints(&[], &source_beams, &sensor_beams, k, true)),
             },
         }
     }
