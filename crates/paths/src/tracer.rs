@@ -67,9 +67,9 @@ pub struct Vertex {
     /// The factor on `weight` of a contribution that sums the forward and the reversed terms
     /// (Eq. 36): exactly 1/2 when the vertices are sampled in this order and in reverse with
     /// the same density (or, with a first-vertex density that is not symmetric, an unbiased
-    /// equal split), and with point endpoints next to the medium the balance heuristic
-    /// `q(x) / (q(x) + q(x^r))` of the densities of the two orders
-    /// ([`Tracer::with_point_endpoints`]).
+    /// equal split), and with point endpoints next to the medium or Gaussian beams the balance
+    /// heuristic `q(x) / (q(x) + q(x^r))` of the joint densities of the first vertex and
+    /// direction in the two orders ([`Tracer::with_endpoints`]).
     pub both_orders: f64,
 }
 
