@@ -11,6 +11,13 @@
 //!   throughput in paths. Fields cost `O(S + V)` connections and `O(J)` pair updates per
 //!   vertex, so the ratio to the far field is that of the connections where `J` is small.
 //!
+//! - `nearfield/sampling/<beams>/vmf3/J=16`: the Gaussian covariance above with each
+//!   `render.beams` strategy (`off`, `position`, `position_and_direction`): the cost per path of
+//!   sampling around the beams (10 distinct beams: each vertex evaluates every beam's density, and
+//!   with directions its vMF pair mixture). The variance-times-time gains are printed by
+//!   `tests/nearfield_sampling.rs`.
+//!
+//! The far/gaussian groups sample with `render.beams = "off"`, so that both trace the same paths.
 //! A 20 x 20 x 8 wavelength slab of mean free path 4; fixed seeds. Run with
 //! `cargo bench --bench nearfield` (per core: `RAYON_NUM_THREADS=1`).
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
@@ -20,6 +27,7 @@ use speckle::estimators::{
     render_covariance, render_fields,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::paths::{BeamStrategy, TracerConfig};
 use speckle::phase::Phase;
 use speckle::vmf::VmfMixture;
 use std::hint::black_box;
@@ -55,13 +63,21 @@ fn scene_with(gaussian: bool, phase: Phase, nv: usize) -> Scene<HomogeneousBox, 
     Scene::new(m, phase, 1.0, sources, sensors, Pair::all(2, nv)).unwrap()
 }
 
+/// The strategies with `beams`.
+fn sampling(beams: BeamStrategy) -> TracerConfig {
+    TracerConfig {
+        beams,
+        ..TracerConfig::default()
+    }
+}
+
 fn covariance(c: &mut Criterion) {
     let paths = 4096;
     let opts = CovarianceOptions {
         paths,
         seed: 1,
         coherence: Coherence::ForwardAndReversed,
-        ..Default::default()
+        sampling: sampling(BeamStrategy::Off),
     };
     for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
         for (kind, gaussian) in [("far", false), ("gaussian", true)] {
@@ -73,6 +89,23 @@ fn covariance(c: &mut Criterion) {
             });
             g.finish();
         }
+    }
+    let s = scene(true, lobed());
+    for (name, beams) in [
+        ("off", BeamStrategy::Off),
+        ("position", BeamStrategy::Position),
+        ("position_and_direction", BeamStrategy::PositionAndDirection),
+    ] {
+        let opts = CovarianceOptions {
+            sampling: sampling(beams),
+            ..opts
+        };
+        let mut g = c.benchmark_group(format!("nearfield/sampling/{name}/vmf3"));
+        g.sample_size(10).throughput(Throughput::Elements(paths));
+        g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
+            b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))
+        });
+        g.finish();
     }
 }
 
@@ -90,7 +123,7 @@ fn fields(c: &mut Criterion) {
         seed: 1,
         coherence: Coherence::ForwardAndReversed,
         add_mean: false,
-        ..Default::default()
+        sampling: sampling(BeamStrategy::Off),
     };
     for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
         for nv in [8, 64] {

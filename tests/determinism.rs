@@ -52,6 +52,7 @@ fn scene() -> Scene<HomogeneousBox, Phase> {
 const SAMPLING: TracerConfig = TracerConfig {
     first_vertex: FirstVertex::Uniform,
     first_direction: FirstDirection::Phase { axis: DVec3::Z },
+    beams: speckle::paths::BeamStrategy::PositionAndDirection,
     max_vertices: u32::MAX,
 };
 

@@ -5,8 +5,8 @@
 //! estimator's covariance on the same medium times the focal phase factors of the four
 //! endpoints of each entry.
 //!
-//! Both renders trace the same paths (same seed; the first vertex and direction are sampled
-//! independently of the endpoints), so the comparison is path by path: every contribution
+//! Both renders trace the same paths (same seed; with `render.beams = "off"` the first vertex
+//! and direction are sampled independently of the endpoints), so the comparison is path by path: every contribution
 //! differs by a relative `O(k^2 |x - f|^2 / gamma)`, and the largest deviation of the whole
 //! matrix, relative to `sqrt(C_pp C_qq)`, must fall like `1 / gamma` and be below `2e-4` at
 //! `gamma = 1e7`. The scene is 3D with a lobed vMF amplitude (forward lobe, isotropic floor,
@@ -20,6 +20,7 @@ use speckle::estimators::{
     Coherence, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source, render_covariance,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::paths::{BeamStrategy, TracerConfig};
 use speckle::phase::{Complex64, Phase};
 use speckle::vmf::VmfMixture;
 use std::sync::Arc;
@@ -73,7 +74,11 @@ fn render(sources: Vec<Source>, sensors: Vec<Sensor>) -> speckle::estimators::Co
         paths: 20_000,
         seed: 5,
         coherence: Coherence::ForwardAndReversed,
-        ..Default::default()
+        // No importance sampling around the beams: the paths must not depend on the endpoints.
+        sampling: TracerConfig {
+            beams: BeamStrategy::Off,
+            ..TracerConfig::default()
+        },
     };
     render_covariance(&scene, &opts, &NoProgress).unwrap()
 }

@@ -21,12 +21,15 @@
 //! depth 1 keep at 1%, below the standard errors here. The reflection sensor also checks that
 //! the wave solution's coherent backscattering exceeds the forward-only Monte Carlo.
 //!
-//! Measured (seeds as below): flatland, largest deviations 1.69 (intensity) and 1.46 (memory
-//! effect) combined SE, backscattering peak z 6.4 over forward-only; 3D, 1.87 and 2.55 (the
+//! The Monte Carlo samples with the default importance sampling around the beams
+//! (`render.beams = "position_and_direction"`), so this also checks that strategy against the
+//! exact solution. Measured (seeds as below): flatland, largest deviations 2.87 (intensity) and
+//! 2.49 (memory effect) combined SE, backscattering peak z 6.8 over forward-only; 3D, 1.73 and
+//! 2.36, peak z 6.5 (with uniform sampling: flatland 1.69, 1.46, 6.4; 3D 1.87 and 2.55 (the
 //! imaginary part of the wave solution's covariances, about +0.0004 on entries of 0.06, where
 //! the Monte Carlo's is 0: in 3D the wave intensities also run 2-5% below the Monte Carlo, the
 //! dependent scattering of these dense small boxes that `wave_validation.rs` documents), peak
-//! z 6.2. About 27 s each in the ci profile.
+//! z 6.2). About 27 s each in the ci profile.
 
 mod common_z;
 use common_z::z;

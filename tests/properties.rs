@@ -163,7 +163,7 @@ fn sampling(p: &Params) -> TracerConfig {
         first_direction: p.first_direction.map_or(FirstDirection::Uniform, |axis| {
             FirstDirection::Phase { axis }
         }),
-        max_vertices: u32::MAX,
+        ..TracerConfig::default()
     }
 }
 

@@ -28,9 +28,11 @@ mod first;
 mod tracer;
 
 pub use factor::{FactorValue, NoFactor, PathFactor};
-pub use first::{FirstDirection, FirstVertex};
+pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
 pub use speckle_stats::PathRng;
-pub use tracer::{MAX_OUTSIDE_COMPONENTS, Tracer, TracerConfig, Vertex, VertexSink};
+pub use tracer::{
+    MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, Tracer, TracerConfig, Vertex, VertexSink,
+};
 
 /// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

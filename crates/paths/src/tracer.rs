@@ -1,7 +1,9 @@
 //! The sub-path tracer.
 
-use crate::first::{FirstDirectionSampler, FirstVertexSampler, PointMixture};
-use crate::{Coherence, FirstDirection, FirstVertex, PathError, PathRng};
+use crate::first::{
+    BeamSampler, Component, EndpointMixture, FirstDirectionSampler, FirstVertexSampler,
+};
+use crate::{Beam, BeamStrategy, Coherence, FirstDirection, FirstVertex, PathError, PathRng};
 use glam::DVec3;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
@@ -10,6 +12,11 @@ use speckle_phase::PhaseFunction;
 /// ([`Tracer::with_point_endpoints`]).
 pub const MAX_OUTSIDE_COMPONENTS: usize = 64;
 
+/// Most beam components of the first-vertex mixture ([`Tracer::with_endpoints`]): with more
+/// distinct beams (a `gaussian_grid` camera), the sensors' beams are left out, and with more
+/// source beams than this, all are.
+pub const MAX_BEAM_COMPONENTS: usize = 16;
+
 /// How sub-paths are sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TracerConfig {
@@ -17,6 +24,9 @@ pub struct TracerConfig {
     pub first_vertex: FirstVertex,
     /// Strategy for the first direction.
     pub first_direction: FirstDirection,
+    /// How first vertices and directions follow focused Gaussian beams
+    /// ([`Tracer::with_endpoints`]).
+    pub beams: BeamStrategy,
     /// Paths stop after this many vertices. The default (`u32::MAX`) never truncates; a smaller
     /// value drops the contribution of longer paths (a bias the caller accepts).
     pub max_vertices: u32,
@@ -27,6 +37,7 @@ impl Default for TracerConfig {
         Self {
             first_vertex: FirstVertex::Uniform,
             first_direction: FirstDirection::Uniform,
+            beams: BeamStrategy::default(),
             max_vertices: u32::MAX,
         }
     }
@@ -56,9 +67,9 @@ pub struct Vertex {
     /// The factor on `weight` of a contribution that sums the forward and the reversed terms
     /// (Eq. 36): exactly 1/2 when the vertices are sampled in this order and in reverse with
     /// the same density (or, with a first-vertex density that is not symmetric, an unbiased
-    /// equal split), and with point endpoints next to the medium the balance heuristic
-    /// `q(x) / (q(x) + q(x^r))` of the densities of the two orders
-    /// ([`Tracer::with_point_endpoints`]).
+    /// equal split), and with point endpoints next to the medium or Gaussian beams the balance
+    /// heuristic `q(x) / (q(x) + q(x^r))` of the joint densities of the first vertex and
+    /// direction in the two orders ([`Tracer::with_endpoints`]).
     pub both_orders: f64,
 }
 
@@ -104,7 +115,8 @@ pub struct Tracer<'a, M, P> {
     typed: bool,
     first_vertex: FirstVertexSampler,
     first_direction: FirstDirectionSampler,
-    points: Option<PointMixture>,
+    points: Option<EndpointMixture>,
+    beams: BeamStrategy,
     max_vertices: u32,
 }
 
@@ -144,6 +156,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             first_vertex: FirstVertexSampler::new(config.first_vertex, medium)?,
             first_direction: FirstDirectionSampler::new(config.first_direction, dimension)?,
             points: None,
+            beams: config.beams,
             max_vertices: config.max_vertices,
         })
     }
@@ -167,7 +180,31 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// any near point the tracer is unchanged (bitwise). Every vertex evaluates the density of
     /// every component: when more than [`MAX_OUTSIDE_COMPONENTS`] points are near, only those in
     /// or on the medium's box (which need it) get components.
-    pub fn with_point_endpoints(mut self, points: &[DVec3], others: bool) -> Self {
+    pub fn with_point_endpoints(self, points: &[DVec3], others: bool) -> Self {
+        self.with_endpoints(points, &[], &[], 1.0, others)
+    }
+
+    /// [`Tracer::with_point_endpoints`] with, in addition, one component per distinct focused
+    /// Gaussian beam of `sources` and `sensors` (in their source form) when the configured
+    /// [`BeamStrategy`] is not `Off`, for wavenumber `k`: first vertices from the beam's
+    /// Gaussian structure (Bar et al. 2020, Eqs. 33-36) and, with
+    /// [`BeamStrategy::PositionAndDirection`], first directions from the vMF pair mixture of
+    /// `|Upsilon|^2` (Sec. 6) mixed with the phase function about the beam's axis. Beams always
+    /// leave the volume strategy its share `1 / (n + 1)` (`n` components): the beam model is a
+    /// proposal, not the throughput. The weights use the exact density of the whole mixture,
+    /// evaluated for both orders of every path ([`Vertex::both_orders`]); unlike point
+    /// components, beams do not need reversed paths. Every vertex evaluates every beam's
+    /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' are kept (few
+    /// illuminators, many pixels: the paper samples the first segment for that reason), and
+    /// none beyond that many sources.
+    pub fn with_endpoints(
+        mut self,
+        points: &[DVec3],
+        sources: &[Beam],
+        sensors: &[Beam],
+        k: f64,
+        others: bool,
+    ) -> Self {
         let m = self.medium;
         let b = m.bounds();
         let mut near = vec![];
@@ -198,14 +235,38 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             near.retain(|(_, _, inside)| *inside);
         }
         let (near, rates): (Vec<_>, Vec<_>) = near.into_iter().map(|(p, r, _)| (p, r)).unzip();
-        self.points = (!near.is_empty()).then(|| PointMixture {
-            volume: if others || far {
-                1.0 / (near.len() + 1) as f64
+        let distinct = |list: &[Beam]| {
+            let mut unique: Vec<Beam> = vec![];
+            for b in list {
+                if !unique.contains(b) {
+                    unique.push(*b);
+                }
+            }
+            unique
+        };
+        let mut unique = distinct(&[sources, sensors].concat());
+        if unique.len() > MAX_BEAM_COMPONENTS {
+            unique = distinct(sources);
+        }
+        if unique.len() > MAX_BEAM_COMPONENTS || self.beams == BeamStrategy::Off {
+            unique.clear();
+        }
+        let lobes = self.phases[0].amplitude_lobes();
+        let directions = self.beams == BeamStrategy::PositionAndDirection;
+        let beams: Vec<BeamSampler> = unique
+            .iter()
+            .map(|b| BeamSampler::new(b, m, k, lobes, directions))
+            .collect();
+        let n = near.len() + beams.len();
+        self.points = (n > 0).then(|| EndpointMixture {
+            volume: if others || far || !beams.is_empty() {
+                1.0 / (n + 1) as f64
             } else {
                 0.0
             },
             points: near,
             rates,
+            beams,
             dimension: m.dimension(),
         });
         self
@@ -216,7 +277,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// sampling at the last vertex is the reversed order of the path. A caller with forward
     /// paths only must not add point endpoints ([`Vertex::weight_for`]).
     pub fn needs_reversed_paths(&self) -> bool {
-        self.points.is_some()
+        self.points.as_ref().is_some_and(|p| !p.points.is_empty())
     }
 
     /// The first-vertex density at `x`, in the box.
@@ -227,6 +288,25 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             Some(p) if p.volume == 0.0 => p.pdf(0.0, x),
             Some(p) => p.pdf(self.first_vertex.pdf(self.medium, x), x),
             None => self.first_vertex.pdf(self.medium, x),
+        }
+    }
+
+    /// The joint density of the first vertex `x` and first direction `w` where a particle of
+    /// type `ty` scatters (`x` in the box).
+    #[inline]
+    fn joint_pdf(&self, x: DVec3, w: DVec3, ty: usize) -> f64 {
+        let phase = &self.phases[ty];
+        let base = self.first_direction.pdf(phase, w);
+        match &self.points {
+            Some(p) if p.samples_directions() => {
+                let v = if p.volume == 0.0 {
+                    0.0
+                } else {
+                    self.first_vertex.pdf(self.medium, x)
+                };
+                p.joint_pdf(v, base, phase, x, w)
+            }
+            _ => self.first_pdf(x) * base,
         }
     }
 
@@ -261,39 +341,66 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// lies outside the medium ([`Tracer::with_point_endpoints`]), whose contribution is zero.
     #[inline]
     pub fn sample_first_vertex(&self, rng: &mut PathRng) -> Option<(DVec3, usize, f64)> {
-        let (x1, q) = match &self.points {
-            None => self.first_vertex.sample(self.medium, rng.next_3()),
+        self.sample_first(rng).map(|(x, ty, w, _)| (x, ty, w))
+    }
+
+    /// [`Tracer::sample_first_vertex`] with the density there and the component that sampled it.
+    #[inline]
+    fn sample_first(&self, rng: &mut PathRng) -> Option<(DVec3, usize, f64, Component)> {
+        let (x1, q, from) = match &self.points {
+            None => {
+                let (x, q) = self.first_vertex.sample(self.medium, rng.next_3());
+                (x, q, Component::Volume)
+            }
             Some(p) => {
                 let c = rng.next_f64();
-                let x = if c < p.volume {
-                    self.first_vertex.sample(self.medium, rng.next_3()).0
+                let (x, from) = if c < p.volume {
+                    let x = self.first_vertex.sample(self.medium, rng.next_3()).0;
+                    (x, Component::Volume)
                 } else {
-                    p.sample_point(c, rng.next_3())
+                    p.sample_component(c, rng.next_3())
                 };
                 if !self.medium.contains(x) || self.medium.sigma_s(x) <= 0.0 {
                     return None;
                 }
-                (x, self.first_pdf(x))
+                (x, self.first_pdf(x), from)
             }
         };
         let ty = self.sample_type(x1, rng);
-        Some((x1, ty, self.medium.sigma_s(x1) / q))
+        Some((x1, ty, self.medium.sigma_s(x1) / q, from))
     }
 
     /// Samples one sub-path, handing every vertex to `sink`; returns the number of vertices
     /// (0 where the sample starts no path, see [`Tracer::sample_first_vertex`]).
     pub fn trace<S: VertexSink>(&self, rng: &mut PathRng, sink: &mut S) -> u32 {
-        let Some((x1, type1, w_single)) = self.sample_first_vertex(rng) else {
+        let Some((x1, type1, w_single, from)) = self.sample_first(rng) else {
             return 0;
         };
         sink.first(x1, type1, w_single, rng);
-        let (w12, p_w) = self
-            .first_direction
-            .sample(&self.phases[type1], rng.next_2());
-        if p_w <= 0.0 {
-            return 1;
-        }
-        let weight = w_single / p_w;
+        let phase1 = &self.phases[type1];
+        let joint = self.points.as_ref().is_some_and(|p| p.samples_directions());
+        let (w12, weight) = if joint {
+            // The direction from the strategy of the sampling component, the weight from the
+            // joint density of the whole mixture.
+            let w12 = match (from, &self.points) {
+                (Component::Beam(j), Some(p)) if p.beams[j].samples_directions() => {
+                    let c = rng.next_f64();
+                    p.beams[j].sample_direction(phase1, x1, c, rng.next_2())
+                }
+                _ => self.first_direction.sample(phase1, rng.next_2()).0,
+            };
+            let p = self.joint_pdf(x1, w12, type1);
+            if p <= 0.0 || !p.is_finite() {
+                return 1;
+            }
+            (w12, self.medium.sigma_s(x1) / p)
+        } else {
+            let (w12, p_w) = self.first_direction.sample(phase1, rng.next_2());
+            if p_w <= 0.0 {
+                return 1;
+            }
+            (w12, w_single / p_w)
+        };
         let (mut x, mut dir, mut b) = (x1, w12, 1u32);
         while b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
@@ -312,8 +419,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 // the interior densities of the two orders are equal (flights and roulette
                 // give sigma_s at every vertex but the first, phase functions are symmetric).
                 Some(_) => {
-                    let p_rev =
-                        self.first_pdf(next) * self.first_direction.pdf(&self.phases[ty], -dir);
+                    let p_rev = self.joint_pdf(next, -dir, ty);
                     1.0 / (1.0 + weight * p_rev / self.medium.sigma_s(next))
                 }
             };
@@ -456,6 +562,57 @@ mod tests {
     }
 
     #[test]
+    fn beam_components_are_distinct_capped_and_need_no_reversed_paths() {
+        let b = Aabb::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0)).unwrap();
+        let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+        let t = |beams| {
+            let cfg = TracerConfig {
+                beams,
+                ..TracerConfig::default()
+            };
+            Tracer::new(&m, &Phase::Isotropic, cfg).unwrap()
+        };
+        let beam = |x: f64| Beam {
+            focus: DVec3::new(x, 2.0, 0.0),
+            axis: DVec3::Z,
+            concentration: 16.0,
+        };
+        let k = std::f64::consts::TAU;
+        // A source and a sensor with the same source form count once; the volume keeps 1/(n+1).
+        let one =
+            t(BeamStrategy::Position).with_endpoints(&[], &[beam(1.0)], &[beam(1.0)], k, false);
+        assert!(!one.needs_reversed_paths());
+        let p = one.points.as_ref().unwrap();
+        assert_eq!((p.beams.len(), p.volume), (1, 0.5));
+        // Off: no mixture at all (the tracer is the plain one).
+        let off = t(BeamStrategy::Off).with_endpoints(&[], &[beam(1.0)], &[], k, true);
+        assert!(off.points.is_none());
+        // A camera of sensors beyond the cap: the sources' beams alone.
+        let camera: Vec<Beam> = (0..MAX_BEAM_COMPONENTS)
+            .map(|i| beam(0.1 * i as f64))
+            .collect();
+        let src = [beam(3.0), beam(3.5)];
+        let capped =
+            t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &camera, k, true);
+        assert_eq!(capped.points.as_ref().unwrap().beams.len(), 2);
+        let kept = t(BeamStrategy::PositionAndDirection).with_endpoints(
+            &[],
+            &src,
+            &camera[..MAX_BEAM_COMPONENTS - 2],
+            k,
+            true,
+        );
+        assert_eq!(
+            kept.points.as_ref().unwrap().beams.len(),
+            MAX_BEAM_COMPONENTS
+        );
+        // More sources than the cap: none.
+        let many_sources = [&camera[..], &src[..1]].concat();
+        let many = t(BeamStrategy::Position).with_endpoints(&[], &many_sources, &[], k, true);
+        assert!(many.points.is_none());
+    }
+
+    #[test]
     fn rejects_bad_configuration() {
         let b = Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap();
         let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
@@ -463,6 +620,7 @@ mod tests {
         let cfg = |fv, fd, n| TracerConfig {
             first_vertex: fv,
             first_direction: fd,
+            beams: BeamStrategy::Off,
             max_vertices: n,
         };
         use FirstDirection as D;

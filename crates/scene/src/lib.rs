@@ -25,7 +25,7 @@ use num_complex::Complex64;
 use rayon::prelude::*;
 use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_medium::Medium;
-use speckle_paths::{Coherence, Tracer, TracerConfig};
+use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
 use std::ops::Range;
@@ -250,10 +250,12 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// The path sampler of this scene's renders: `sampling`'s strategies, plus, with forward and
     /// reversed paths, first vertices around the point sources and sensors that lie inside the
     /// medium or within one extinction length of it
-    /// ([`speckle_paths::Tracer::with_point_endpoints`]). Forward-only renders keep the plain
-    /// strategies, which have infinite variance for a point in or on the medium: such a scene
-    /// is refused, naming `render.coherence`. A configuration the sampler cannot use names
-    /// `render`.
+    /// ([`speckle_paths::Tracer::with_point_endpoints`]), and with any coherence, as
+    /// `sampling.beams` says, around the focused Gaussian beams of the sources and sensors (a
+    /// sensor in its source form; [`speckle_paths::Tracer::with_endpoints`]). Forward-only
+    /// renders keep the plain strategies for points, which have infinite variance for a point in
+    /// or on the medium: such a scene is refused, naming `render.coherence`. A configuration the
+    /// sampler cannot use names `render`.
     pub fn tracer(
         &self,
         sampling: TracerConfig,
@@ -262,12 +264,37 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         let points: Vec<_> = (self.sources.iter().filter_map(Source::point_position))
             .chain(self.sensors.iter().filter_map(Sensor::point_position))
             .collect();
+        // Beams in source form: a sensor's is its beam with the viewing axis reversed.
+        let beam = |b: &speckle_endpoints::GaussianBeam| Beam {
+            focus: b.focus,
+            axis: b.axis,
+            concentration: b.concentration,
+        };
+        let source_beams: Vec<Beam> = (self.sources.iter())
+            .filter_map(|s| match s {
+                Source::GaussianBeam(b) => Some(beam(b)),
+                _ => None,
+            })
+            .collect();
+        let sensor_beams: Vec<Beam> = (self.sensors.iter())
+            .filter_map(|s| match s {
+                Sensor::GaussianBeam(b) => Some(beam(&b.reversed())),
+                _ => None,
+            })
+            .collect();
+        let k = self.wavenumber();
         let tracer = Tracer::with_types(&self.medium, &self.phases, sampling)
             .map_err(|e| invalid("render", e.to_string()))?;
         match coherence {
             Coherence::ForwardAndReversed => {
                 let n = self.sources.len() + self.sensors.len();
-                Ok(tracer.with_point_endpoints(&points, points.len() < n))
+                Ok(tracer.with_endpoints(
+                    &points,
+                    &source_beams,
+                    &sensor_beams,
+                    k,
+                    points.len() < n,
+                ))
             }
             Coherence::ForwardOnly => match points.iter().find(|p| self.medium.contains(**p)) {
                 Some(p) => Err(invalid(
@@ -281,7 +308,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
                         p.to_array()
                     ),
                 )),
-                None => Ok(tracer),
+                None => Ok(tracer.with_endpoints(&[], &source_beams, &sensor_beams, k, true)),
             },
         }
     }

@@ -403,6 +403,8 @@ pub struct RenderSpec {
     /// Axis for `first_direction = "phase"` (default: the first plane-wave source).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub first_direction_axis: Option<[f64; 3]>,
+    /// How first vertices and directions follow the scene's focused Gaussian beams.
+    pub beams: BeamsSpec,
     /// Truncate paths after this many vertices (biased; unlimited when absent).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_vertices: Option<u32>,
@@ -426,6 +428,7 @@ impl Default for RenderSpec {
             first_vertex_direction: None,
             first_direction: FirstDirectionSpec::Uniform,
             first_direction_axis: None,
+            beams: BeamsSpec::PositionAndDirection,
             max_vertices: None,
             realizations: 8,
             paths_per_realization: 20_000,
@@ -443,6 +446,19 @@ pub enum CoherenceSpec {
     ForwardAndReversed,
     /// Forward paths only.
     ForwardOnly,
+}
+
+/// `render.beams`: importance sampling around focused Gaussian beams (sources, and sensors for
+/// the reversed order), mixed with the `first_vertex` and `first_direction` strategies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BeamsSpec {
+    /// No beam components.
+    Off,
+    /// First vertices from the beams' Gaussian structure.
+    Position,
+    /// First vertices and first directions (3D) from the beams (the default).
+    PositionAndDirection,
 }
 
 /// `render.first_vertex`.

@@ -332,3 +332,29 @@ fn gaussian_beams_load_and_name_their_fields() {
         "{e}"
     );
 }
+
+#[test]
+fn render_beams_loads_names_its_field_and_reaches_the_sidecar() {
+    use speckle_paths::BeamStrategy;
+    let with = |v: &str| format!("{OK}[render]\nbeams = {v}\n");
+    // The default follows the beams in position and direction.
+    let p = load(OK).unwrap();
+    assert_eq!(p.render.sampling.beams, BeamStrategy::PositionAndDirection);
+    for (v, want, name) in [
+        ("\"off\"", BeamStrategy::Off, "off"),
+        ("\"position\"", BeamStrategy::Position, "position"),
+        (
+            "\"position_and_direction\"",
+            BeamStrategy::PositionAndDirection,
+            "position_and_direction",
+        ),
+    ] {
+        let p = load(&with(v)).unwrap();
+        assert_eq!(p.render.sampling.beams, want);
+        assert_eq!(p.render.tracer_json()["beams"], name);
+    }
+    for bad in ["\"sometimes\"", "1", "true"] {
+        let e = load(&with(bad)).unwrap_err().to_string();
+        assert!(e.contains("render.beams"), "{bad}: {e}");
+    }
+}

@@ -6,12 +6,12 @@
 
 use crate::SceneError;
 use crate::safe::{Access, output_dir};
-use crate::schema::{FirstDirectionSpec, FirstVertexSpec, OutputSpec, RenderSpec};
+use crate::schema::{BeamsSpec, FirstDirectionSpec, FirstVertexSpec, OutputSpec, RenderSpec};
 use crate::validate::{flat_direction, invalid};
 use serde_json::{Value, json};
 use speckle_endpoints::Source;
 use speckle_medium::{DVec3, Dimension};
-use speckle_paths::{Coherence, FirstDirection, FirstVertex, TracerConfig};
+use speckle_paths::{BeamStrategy, Coherence, FirstDirection, FirstVertex, TracerConfig};
 use std::path::PathBuf;
 
 /// Validated `[render]` settings.
@@ -126,6 +126,11 @@ impl RenderSettings {
             sampling: TracerConfig {
                 first_vertex,
                 first_direction,
+                beams: match r.beams {
+                    BeamsSpec::Off => BeamStrategy::Off,
+                    BeamsSpec::Position => BeamStrategy::Position,
+                    BeamsSpec::PositionAndDirection => BeamStrategy::PositionAndDirection,
+                },
                 max_vertices,
             },
             realizations: r.realizations,
@@ -150,9 +155,15 @@ impl RenderSettings {
                 json!({"type": "phase", "axis": axis.to_array()})
             }
         };
+        let beams = match t.beams {
+            BeamStrategy::Off => "off",
+            BeamStrategy::Position => "position",
+            BeamStrategy::PositionAndDirection => "position_and_direction",
+        };
         json!({
             "first_vertex": first_vertex,
             "first_direction": first_direction,
+            "beams": beams,
             "max_vertices": (t.max_vertices != u32::MAX).then_some(t.max_vertices),
         })
     }
