@@ -45,9 +45,7 @@ use crate::StudyError;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use speckle_endpoints::{GaussianBeam, Pair, Sensor, Source};
-use speckle_estimators::{
-    CovarianceOptions, EstimatorError, Progress, Scene, render_covariance,
-};
+use speckle_estimators::{CovarianceOptions, EstimatorError, Progress, Scene, render_covariance};
 use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 use speckle_phase::{Complex64, Phase, VmfMixture};
 use speckle_scene::validate::{invalid as bad, positive};
