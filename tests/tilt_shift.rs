@@ -148,3 +148,24 @@ fn tilt_shift_sums_its_entries_and_leans_like_eq50() {
         r.slope_se
     );
 }
+
+/// The shipped files of Figs. 1 and 12 load (their physics: `docs/experiments-2020.md`).
+#[test]
+fn shipped_near_field_experiments_load() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let s = speckle::studies::memory::load_tilt_shift_file(
+        &root.join("scenes/fig12_tilt_shift.toml"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        (s.name.as_str(), s.theta.len(), s.delta_b.len()),
+        ("fig12_tilt_shift", 7, 13)
+    );
+    let p = speckle::scene::load::load_file(
+        &root.join("scenes/fig1_nearfield_images.toml"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(p.scene.sources().len(), 3);
+}

@@ -193,7 +193,7 @@ fn a3(x: f64) -> f64 {
 }
 
 fn odd_count(field: &str, n: usize, max: usize) -> Result<(), SceneError> {
-    if n < 3 || n % 2 == 0 || n > max {
+    if n < 3 || n.is_multiple_of(2) || n > max {
         return Err(bad(
             field,
             format!("must be odd and in 3..={max} (got {n})"),
