@@ -117,6 +117,12 @@ enum Command {
     /// (`scenes/fig6a_memory_tilt.toml`) and writes `<name>.memory_tilt*.npy`, a JSON sidecar
     /// and an SVG plot.
     MemoryTilt(memory_tilt::Args),
+    /// The tilt-shift memory effect (Bar et al. 2020, Fig. 12): the near-field correlation of
+    /// Eq. 49 over a grid of output shifts and tilts of two Gaussian beams focused on one face
+    /// of a slab, seen by a camera focused on the other, against the model of Osnabrugge et al.
+    /// 2017 (Eq. 50); reads a study file of its own (`scenes/fig12_tilt_shift.toml`) and writes
+    /// `<name>.tilt_shift*.npy`, a JSON sidecar and an SVG plot.
+    TiltShift(tilt_shift::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -144,6 +150,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::FitPhase(a) => fit_phase::run(a),
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
         Command::MemoryTilt(a) => memory_tilt::run(&a),
+        Command::TiltShift(a) => tilt_shift::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

@@ -336,3 +336,52 @@ fn memory_tilt_writes_its_curves() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("g[1]"), "{}", stderr(&o));
 }
+
+/// `speckle tilt-shift` (Bar et al. 2020, Fig. 12): its files and their shapes, `C(0, 0) = 1`,
+/// the model column, and a bad key named with exit code 2 (the physics: `tests/tilt_shift.rs`).
+#[test]
+fn tilt_shift_writes_its_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "wavelength_um = 0.5\nmean_free_path_um = 23.0\ng = 0.98\nthickness_um = 20.0\n\
+                 width_um = 30.0\nnumerical_aperture = 0.2\ntheta_max_mrad = 100.0\n\
+                 n_theta = 3\ndelta_b_max_um = 2.0\nn_delta_b = 5\ntau_max_um = 4.0\n\
+                 n_tau = 5\n\n[render]\npaths = 200\ngroups = 2\n";
+    let p = dir.path().join("t.toml");
+    std::fs::write(&p, study).unwrap();
+    let o = speckle(
+        dir.path(),
+        &["tilt-shift", p.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let (shape, c) = load_f8(&out.join("t.tilt_shift.npy"));
+    assert_eq!(shape, vec![3, 5]);
+    assert_eq!(c[7], 1.0);
+    assert_eq!(load_f8(&out.join("t.tilt_shift_stderr.npy")).0, vec![3, 5]);
+    assert_eq!(
+        load_f8(&out.join("t.tilt_shift_complex.npy")).0,
+        vec![3, 5, 2]
+    );
+    let (_, model) = load_f8(&out.join("t.tilt_shift_model.npy"));
+    assert_eq!(model[7], 1.0);
+    let (_, printed) = load_f8(&out.join("t.tilt_shift_model_printed.npy"));
+    // The printed form is the derivation's mirrored in theta.
+    for d in 0..5 {
+        assert_eq!(printed[d], model[10 + d]);
+    }
+    assert_eq!(
+        load_f8(&out.join("t.tilt_shift_theta_mrad.npy")).1,
+        vec![-100.0, 0.0, 100.0]
+    );
+    assert_eq!(
+        load_f8(&out.join("t.tilt_shift_delta_b_um.npy")).1,
+        vec![-2.0, -1.0, 0.0, 1.0, 2.0]
+    );
+    let svg = std::fs::read_to_string(out.join("t.tilt_shift.svg")).unwrap();
+    assert!(svg.contains("MC, theta = 100 mrad") && svg.contains("Eq. 50, theta = 0 mrad"));
+    assert!(out.join("t.tilt_shift.json").exists());
+    std::fs::write(&p, study.replace("n_theta = 3", "n_theta = 4")).unwrap();
+    let o = speckle(dir.path(), &["tilt-shift", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("n_theta"), "{}", stderr(&o));
+}

@@ -18,6 +18,7 @@ pub mod merge;
 pub mod mie;
 pub mod shaping;
 pub mod single;
+pub mod tilt_shift;
 pub mod tracking;
 pub mod wave;
 

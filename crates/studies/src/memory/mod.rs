@@ -44,6 +44,7 @@
 mod render;
 mod study;
 mod tilt;
+mod tilt_shift;
 
 pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,
@@ -56,4 +57,8 @@ pub use study::{
 pub use tilt::{
     MAX_G, MAX_TILT_OPTICAL_DEPTH, MemoryTilt, TiltFile, TiltRow, TiltStudy, load_tilt_file,
     load_tilt_str,
+};
+pub use tilt_shift::{
+    MAX_GRID, MAX_TAU, MAX_TILT_SHIFT_OPTICAL_DEPTH, TiltShift, TiltShiftFile, TiltShiftStudy,
+    centroid_slope, eq50, eq50_printed, load_tilt_shift_file, load_tilt_shift_str,
 };
