@@ -30,11 +30,15 @@
 //! `(t v)_brute / (t v)_near`, both measured (the brute force's time from a render of many
 //! paths per realization).
 //!
-//! Measured (ci profile, 2 shared cores): largest deviation 2.09 combined SE (seeds below,
-//! 30 000 brute-force paths; 2.59 and 2.49 at 36 000 with two seed sets), on a cross entry of
-//! a transmission and the reflection sensor, whose values are near 0. Per path 10-17 us
-//! (closed forms) against 19-23 us (brute force), per-path variance 1.46x: **2x to 4x for the
-//! same standard error** on this 16 x 6 box. That is the quadrature applied per path, inside the
+//! Measured (ci profile, 2 shared cores): largest deviation 2.74 combined SE over both
+//! near-field renders (seeds below, 30 000 brute-force paths; 2.59 and 2.49 at 36 000 with two
+//! seed sets and uniform sampling), on cross entries of a transmission and the reflection
+//! sensor, whose values are near 0. With the far-field renderer's uniform sampling on both
+//! sides: per path 5-17 us (closed forms) against 10-23 us (brute force), per-path variance
+//! 1.46x: **2x to 4x for the same standard error** on this 16 x 6 box (2.4x in the last run).
+//! With the default importance sampling around the beams (`render.beams`, which needs the
+//! closed forms' beam model) the closed forms' variance per path is 4.7x lower: **11.5x**.
+//! The brute force here is the quadrature applied per path, inside the
 //! estimator (Eq. 9 on each path's fields); its cost grows as `Q P ~ (W NA / lambda)^2`
 //! (`^4` in 3D), the closed forms' does not. The literal Eq. 11 (the far-field covariance of
 //! all `Q P` pairs, then the weighted sum) forms `Q P (Q P + 1) / 2 = 1.97e7` Hermitian updates
