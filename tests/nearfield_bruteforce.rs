@@ -45,6 +45,9 @@
 //! per vertex instead of 6272, about 3100x more work per vertex (not run: 630 MB per batch
 //! sum); the paper reports about 3000x.
 
+mod common_quad;
+use common_quad::gauss_legendre;
+
 use num_complex::Complex64;
 use speckle::endpoints::GaussianBeam;
 use speckle::estimators::{
@@ -62,30 +65,6 @@ const GAMMA: f64 = 50.0;
 const THETA_MAX: f64 = 1.0;
 /// Gauss-Legendre nodes per aperture.
 const NODES: usize = 56;
-
-/// Gauss-Legendre nodes and weights on [-1, 1] (Newton on the three-term recurrence).
-fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut t = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut dp = 1.0;
-            for _ in 0..100 {
-                let (mut p0, mut p1) = (1.0, t);
-                for k in 2..=n {
-                    let k = k as f64;
-                    (p0, p1) = (p1, ((2.0 * k - 1.0) * t * p1 - (k - 1.0) * p0) / k);
-                }
-                dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
-                let step = p1 / dp;
-                t -= step;
-                if step.abs() < 1e-15 {
-                    break;
-                }
-            }
-            (t, 2.0 / ((1.0 - t * t) * dp * dp))
-        })
-        .collect()
-}
 
 /// A flatland direction at angle `t` from the unit in-plane `axis`.
 fn rotate(axis: DVec3, t: f64) -> DVec3 {

@@ -26,6 +26,9 @@
 //! scattering is a visible part of a reflection covariance (thin or forward-scattering media
 //! seen by a beam sensor in reflection); multiply scattered paths connect exactly (`B >= 2`).
 
+mod common_quad;
+use common_quad::gauss_legendre;
+
 use num_complex::Complex64;
 use speckle::endpoints::{Endpoints, GaussianBeam};
 use speckle::estimators::{Sensor, Source};
@@ -36,30 +39,6 @@ use std::f64::consts::{PI, TAU};
 use std::sync::Arc;
 
 const GAMMA_A: f64 = 16.0;
-
-/// Gauss-Legendre nodes and weights on [-1, 1].
-fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut t = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut dp = 1.0;
-            for _ in 0..100 {
-                let (mut p0, mut p1) = (1.0, t);
-                for k in 2..=n {
-                    let k = k as f64;
-                    (p0, p1) = (p1, ((2.0 * k - 1.0) * t * p1 - (k - 1.0) * p0) / k);
-                }
-                dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
-                let step = p1 / dp;
-                t -= step;
-                if step.abs() < 1e-15 {
-                    break;
-                }
-            }
-            (t, 2.0 / ((1.0 - t * t) * dp * dp))
-        })
-        .collect()
-}
 
 /// Nodes `(w, weight * mask(w))` of the unit-integral Gaussian mask about `axis` (`+-z`).
 fn cap(axis: f64) -> Vec<(DVec3, f64)> {

@@ -97,6 +97,45 @@ impl Common {
     }
 }
 
+/// The options of every study command (`memory-spectrum`, `memory-tilt`, `tilt-shift`).
+#[derive(Debug, clap::Args)]
+pub struct StudyOptions {
+    /// Output directory (replaces `output.dir`).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Sub-paths per point of the study: per wavelength (memory-spectrum), value of g
+    /// (memory-tilt) or grid point (tilt-shift) (replaces `render.paths`).
+    #[arg(long, value_name = "N")]
+    pub paths: Option<u64>,
+    /// Seed (replaces `render.seed`).
+    #[arg(long, value_name = "S")]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+    /// No progress bar nor cost estimate.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Run even when the estimated memory exceeds the machine's or the rough time a day.
+    #[arg(long)]
+    pub force: bool,
+    /// Let the study write to an `output.dir` outside the current directory.
+    #[arg(long)]
+    pub allow_outside: bool,
+}
+
+impl StudyOptions {
+    /// What the options replace in the study file.
+    pub fn overrides(&self) -> speckle::studies::memory::StudyOverrides {
+        speckle::studies::memory::StudyOverrides {
+            paths: self.paths,
+            seed: self.seed,
+            out: self.out.clone(),
+            allow_outside: self.allow_outside,
+        }
+    }
+}
+
 /// Sets the number of worker threads (all cores when `None`).
 pub fn set_threads(threads: Option<u16>) -> anyhow::Result<()> {
     if let Some(t) = threads {
