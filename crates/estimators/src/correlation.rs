@@ -566,7 +566,12 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
     };
     let e_len: usize = list.len();
-    let tracer = scene.tracer(options.sampling, options.coherence)?;
+    let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
+    let tracer = scene.tracer_with(
+        options.sampling,
+        options.coherence,
+        &drift_midpoints(scene, &factor, lags, &list),
+    )?;
     let probe = Connector::new(scene);
     let local: Vec<Entry> = list
         .iter()
@@ -596,7 +601,6 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             Powers::of(lags)
         },
     };
-    let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
     let parts: Vec<(Layout, usize)> = plan
         .zero
         .iter()
@@ -684,6 +688,53 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         per_lag,
         paths: options.paths,
     })
+}
+
+/// The points where both drifting copies of a path are singular at once: copy 1 connects from
+/// `x - t U / 2`, so its leg to a point endpoint `p1` is singular at `x = p1 + t U(p1) / 2`, and
+/// copy 2's leg to `p2` at `p2 - t U(p2) / 2`. For an entry that tracks the flow
+/// (`p2 = p1 + t U`, Eq. 39) the two coincide, the product of the two `1/r` legs is `1/r^2`
+/// there, and without first vertices sampled around that point the estimator has infinite
+/// variance (a point in or on the medium). Returns those points (sources and sensors of every
+/// entry and lag, coinciding to 1e-9 relative), once each.
+fn drift_midpoints<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    factor: &MotionFactor<'_, M>,
+    lags: &[f64],
+    entries: &[(usize, usize)],
+) -> Vec<DVec3> {
+    if !factor.model().has_drift() {
+        return Vec::new();
+    }
+    let pairs = scene.pairs();
+    let mut out: Vec<DVec3> = Vec::new();
+    for &(j, k) in entries {
+        let (a, b) = (pairs[j], pairs[k]);
+        let ends = [
+            (
+                scene.sources()[a.source].point_position(),
+                scene.sources()[b.source].point_position(),
+            ),
+            (
+                scene.sensors()[a.sensor].point_position(),
+                scene.sensors()[b.sensor].point_position(),
+            ),
+        ];
+        for (p1, p2) in ends {
+            let (Some(p1), Some(p2)) = (p1, p2) else {
+                continue;
+            };
+            let (u1, u2) = (factor.motion_at(p1).drift, factor.motion_at(p2).drift);
+            for &t in lags.iter().filter(|t| **t != 0.0) {
+                let (s1, s2) = (p1 + 0.5 * t * u1, p2 - 0.5 * t * u2);
+                let scale = 1.0 + p1.abs().max_element().max(p2.abs().max_element());
+                if (s1 - s2).length() <= 1e-9 * scale && !out.contains(&s1) {
+                    out.push(s1);
+                }
+            }
+        }
+    }
+    out
 }
 
 fn motion_error(e: speckle_motion::MotionError) -> EstimatorError {

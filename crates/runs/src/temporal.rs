@@ -398,21 +398,11 @@ pub fn tracking(p: &Problem, progress: &dyn Progress) -> Result<Tracking, RunErr
             scene.medium().clone(),
             scene.phases().to_vec(),
             scene.wavelength(),
-            // The midpoints `i + tU/2`, `v + tU/2` are in no pair: as endpoints of the scene
-            // they join the sampler's mixture of first vertices around point endpoints. Copy 1
-            // connects from `x - tU/2` to `(i, v)`, copy 2 from `x + tU/2` to `(i + tU, v +
-            // tU)`: both legs are singular at the midpoints, and without samples around them
-            // an endpoint in or on the medium gives infinite variance.
-            vec![
-                Source::point(s.source),
-                Source::point(s.source + shift),
-                Source::point(s.source + 0.5 * shift),
-            ],
-            vec![
-                Sensor::point(s.sensor),
-                Sensor::point(s.sensor + shift),
-                Sensor::point(s.sensor + 0.5 * shift),
-            ],
+            // Copy 1 connects from `x - tU/2` to `(i, v)`, copy 2 from `x + tU/2` to
+            // `(i + tU, v + tU)`: both legs are singular at the midpoints `i + tU/2`,
+            // `v + tU/2`, around which `render_correlation` samples first vertices.
+            vec![Source::point(s.source), Source::point(s.source + shift)],
+            vec![Sensor::point(s.sensor), Sensor::point(s.sensor + shift)],
             vec![pair(0), pair(1)],
         )
         .map_err(in_doc)?;

@@ -24,7 +24,7 @@
 use num_complex::Complex64;
 use rayon::prelude::*;
 use speckle_endpoints::{Pair, Sensor, Source};
-use speckle_medium::Medium;
+use speckle_medium::{DVec3, Medium};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
@@ -261,8 +261,22 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         sampling: TracerConfig,
         coherence: Coherence,
     ) -> Result<Tracer<'_, M, P>, SceneError> {
+        self.tracer_with(sampling, coherence, &[])
+    }
+
+    /// [`Scene::tracer`] with first vertices also sampled around the points `extra` (as around
+    /// point endpoints; with forward and reversed paths only): where a render's connections are
+    /// singular beyond the endpoints themselves, such as the midpoints of the drifting copies of
+    /// a path that tracks the flow (`speckle_estimators::render_correlation`).
+    pub fn tracer_with(
+        &self,
+        sampling: TracerConfig,
+        coherence: Coherence,
+        extra: &[DVec3],
+    ) -> Result<Tracer<'_, M, P>, SceneError> {
         let points: Vec<_> = (self.sources.iter().filter_map(Source::point_position))
             .chain(self.sensors.iter().filter_map(Sensor::point_position))
+            .chain(extra.iter().copied())
             .collect();
         // Beams in source form: a sensor's is its beam with the viewing axis reversed.
         let beam = |b: &speckle_endpoints::GaussianBeam| Beam {
@@ -287,7 +301,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             .map_err(|e| invalid("render", e.to_string()))?;
         match coherence {
             Coherence::ForwardAndReversed => {
-                let n = self.sources.len() + self.sensors.len();
+                let n = self.sources.len() + self.sensors.len() + extra.len();
                 Ok(tracer.with_endpoints(
                     &points,
                     &source_beams,
