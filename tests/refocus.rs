@@ -116,3 +116,16 @@ fn refocus_peaks_at_zero_decays_and_the_tilt_helps() {
         );
     }
 }
+
+/// The shipped file of Fig. 13 loads (its results: `docs/experiments-2020.md`).
+#[test]
+fn shipped_refocus_study_loads() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let s = speckle::studies::memory::load_refocus_file(
+        &root.join("scenes/fig13_refocus.toml"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!((s.name.as_str(), s.delta.len()), ("fig13_refocus", 9));
+    assert_eq!(s.delta[8], 2.0);
+}
