@@ -123,6 +123,12 @@ enum Command {
     /// 2017 (Eq. 50); reads a study file of its own (`scenes/fig12_tilt_shift.toml`) and writes
     /// `<name>.tilt_shift*.npy`, a JSON sidecar and an SVG plot.
     TiltShift(tilt_shift::Args),
+    /// Focusing through a slab by phase conjugation (Bar et al. 2020, Fig. 13 bottom): the
+    /// expected power of the focus against its displacement, the conjugate field shifted (Eq. 51)
+    /// or shifted and tilted (Eq. 52, the tilt from Eq. 50), from the covariances of Gaussian
+    /// beams; reads a study file of its own (`scenes/fig13_refocus.toml`) and writes
+    /// `<name>.refocus*.npy`, a JSON sidecar and an SVG plot.
+    Refocus(refocus::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -151,6 +157,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
         Command::MemoryTilt(a) => memory_tilt::run(&a),
         Command::TiltShift(a) => tilt_shift::run(&a),
+        Command::Refocus(a) => refocus::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

@@ -385,3 +385,58 @@ fn tilt_shift_writes_its_grid() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("n_theta"), "{}", stderr(&o));
 }
+
+/// `speckle refocus` (Bar et al. 2020, Fig. 13 bottom): its files and their shapes, the power 1
+/// at `Delta = 0`, the tilts `-3 Delta / (2 L)`, Eq. 50's curves, and a bad key named with exit
+/// code 2 (the physics: `tests/refocus.rs`).
+#[test]
+fn refocus_writes_its_curves() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "wavelength_um = 0.5\nmean_free_path_um = 23.0\ng = 0.98\nthickness_um = 20.0\n\
+                 width_um = 30.0\nnumerical_aperture = 0.2\ndelta_max_um = 2.0\nn_delta = 3\n\
+                 tau_max_um = 4.0\nn_tau = 5\n\n[render]\npaths = 200\ngroups = 2\n";
+    let p = dir.path().join("t.toml");
+    std::fs::write(&p, study).unwrap();
+    let o = speckle(
+        dir.path(),
+        &["refocus", p.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    assert_eq!(
+        load_f8(&out.join("t.refocus_delta_um.npy")).1,
+        vec![0.0, 1.0, 2.0]
+    );
+    for key in ["shift", "tilt"] {
+        let (shape, c) = load_f8(&out.join(format!("t.refocus_{key}.npy")));
+        assert_eq!(shape, vec![3]);
+        assert_eq!(c[0], 1.0);
+        assert_eq!(
+            load_f8(&out.join(format!("t.refocus_{key}_stderr.npy"))).0,
+            vec![3]
+        );
+        assert_eq!(
+            load_f8(&out.join(format!("t.refocus_model_{key}.npy"))).1[0],
+            1.0
+        );
+    }
+    assert_eq!(
+        load_f8(&out.join("t.refocus_theta_mrad.npy")).1,
+        vec![0.0, -75.0, -150.0]
+    );
+    // Eq. 50: the tilt divides the exponent by 4.
+    let shift = load_f8(&out.join("t.refocus_model_shift.npy")).1;
+    let tilt = load_f8(&out.join("t.refocus_model_tilt.npy")).1;
+    assert!((tilt[2].ln() * 4.0 / shift[2].ln() - 1.0).abs() < 1e-9);
+    let svg = std::fs::read_to_string(out.join("t.refocus.svg")).unwrap();
+    assert!(svg.contains("shift + tilt (Eq. 52)") && svg.contains("Eq. 50, shift only"));
+    assert!(out.join("t.refocus.json").exists());
+    std::fs::write(&p, study.replace("n_delta = 3", "n_delta = 1")).unwrap();
+    let o = speckle(dir.path(), &["refocus", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("n_delta"), "{}", stderr(&o));
+    std::fs::write(&p, study.replace("width_um = 30.0", "width_um = 9.0")).unwrap();
+    let o = speckle(dir.path(), &["refocus", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("width_um"), "{}", stderr(&o));
+}

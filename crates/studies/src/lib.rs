@@ -6,7 +6,8 @@
 //!   Fig. 11), against diffusion theory (Eq. 39), and against the tilt for a sweep of `g` (Bar
 //!   et al. 2023, Fig. 6, `memory::TiltStudy`), against the C1 term, and the tilt-shift memory
 //!   effect of Gaussian beams (Bar et al. 2020, Fig. 12, `memory::TiltShiftStudy`), against
-//!   Eq. 50 (Osnabrugge et al. 2017);
+//!   Eq. 50 (Osnabrugge et al. 2017), and the power of a phase-conjugate focus through the slab
+//!   against its displacement, shifted or shifted and tilted (Fig. 13, `memory::RefocusStudy`);
 //! - [`plot`]: its figure, an SVG drawn with `plotters`;
 //! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
 //! - [`shaping`]: dynamic wavefront shaping on sampled transmission-matrix sequences (Bar et

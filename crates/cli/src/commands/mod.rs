@@ -16,6 +16,7 @@ pub mod memory_spectrum;
 pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
+pub mod refocus;
 pub mod shaping;
 pub mod single;
 pub mod tilt_shift;

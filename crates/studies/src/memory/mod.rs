@@ -41,11 +41,16 @@
 //! - The result is plain data ([`MemorySpectrum`]); [`crate::plot`] draws it. Writing files is
 //!   the caller's business.
 
+mod refocus;
 mod render;
 mod study;
 mod tilt;
 mod tilt_shift;
 
+pub use refocus::{
+    MAX_REFOCUS_POINTS, Refocus, RefocusFile, RefocusStudy, load_refocus_file, load_refocus_str,
+    optimal_tilt,
+};
 pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,
     Wavelength, eq39,

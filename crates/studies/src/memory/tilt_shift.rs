@@ -202,7 +202,7 @@ fn odd_count(field: &str, n: usize, max: usize) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn validate(
+pub(super) fn validate(
     file: TiltShiftFile,
     origin: &str,
     default_name: &str,
