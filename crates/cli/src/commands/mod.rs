@@ -98,14 +98,16 @@ impl Common {
     }
 }
 
-/// The options of every study command (`memory-spectrum`, `memory-tilt`, `tilt-shift`).
+/// The options of every study command (`memory-spectrum`, `memory-tilt`, `tilt-shift`,
+/// `refocus`).
 #[derive(Debug, clap::Args)]
 pub struct StudyOptions {
     /// Output directory (replaces `output.dir`).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Sub-paths per point of the study: per wavelength (memory-spectrum), value of g
-    /// (memory-tilt) or grid point (tilt-shift) (replaces `render.paths`).
+    /// (memory-tilt), grid point (tilt-shift) or displacement (refocus) (replaces
+    /// `render.paths`).
     #[arg(long, value_name = "N")]
     pub paths: Option<u64>,
     /// Seed (replaces `render.seed`).

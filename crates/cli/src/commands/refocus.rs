@@ -6,56 +6,32 @@
 use super::*;
 use crate::error;
 use speckle::scene::npy::encode_f8;
-use speckle::studies::memory::{StudyOverrides, load_refocus_file};
+use speckle::studies::memory::load_refocus_file;
 
 /// Arguments of `refocus`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The study file (TOML; `scenes/fig13_refocus.toml` is one).
     study: PathBuf,
-    /// Output directory (replaces `output.dir`).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
-    /// Sub-paths per point (replaces `render.paths`).
-    #[arg(long, value_name = "N")]
-    paths: Option<u64>,
-    /// Seed (replaces `render.seed`).
-    #[arg(long, value_name = "S")]
-    seed: Option<u64>,
-    /// Worker threads (default: all cores). Results do not depend on it.
-    #[arg(long, value_name = "T", value_parser = clap::value_parser!(u16).range(1..))]
-    threads: Option<u16>,
-    /// No progress bar nor cost estimate.
-    #[arg(long, short)]
-    quiet: bool,
-    /// Run even when the estimated memory exceeds the machine's or the rough time a day.
-    #[arg(long)]
-    force: bool,
-    /// Let the study write to an `output.dir` outside the current directory.
-    #[arg(long)]
-    allow_outside: bool,
+    #[command(flatten)]
+    opts: StudyOptions,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let o = StudyOverrides {
-        paths: a.paths,
-        seed: a.seed,
-        out: a.out.clone(),
-        allow_outside: a.allow_outside,
-    };
+    let o = a.opts.overrides();
     let s = load_refocus_file(&a.study, &o)?;
-    set_threads(a.threads)?;
+    set_threads(a.opts.threads)?;
     install_interrupt_handler(true);
     let mut staged = prepare(&s.file.output.dir)?;
     let cost = s.estimate(threads());
-    speckle::scene::cost::guard(&cost, speckle::scene::cost::machine_memory(), a.force)
+    speckle::scene::cost::guard(&cost, speckle::scene::cost::machine_memory(), a.opts.force)
         .map_err(|e| LoadError::from(e).in_document(&s.origin))?;
-    if !a.quiet {
+    if !a.opts.quiet {
         say!("{}: estimate: {}", s.name, cost.describe());
     }
     let r = &s.file.render;
     let total = ((2 * s.delta.len() - 1) as u64).saturating_mul(r.paths);
-    let progress = CliProgress::new(total, "paths", &s.name, a.quiet, None);
+    let progress = CliProgress::new(total, "paths", &s.name, a.opts.quiet, None);
     let result = s.render(&progress);
     progress.finish();
     let result = result.map_err(error::study)?;
