@@ -200,6 +200,30 @@ pub struct StudyOverrides {
     pub allow_outside: bool,
 }
 
+impl StudyOverrides {
+    /// Checks the study's own `output.dir` (it must stay below the current directory; the
+    /// command line's is the user's choice), then replaces `render.paths`, `render.seed` and
+    /// `output.dir` with the values given. Shared by every study file's loader.
+    pub fn apply(
+        &self,
+        render: &mut StudyRender,
+        output: &mut StudyOutput,
+    ) -> Result<(), LoadError> {
+        let access = speckle_scene::safe::Access {
+            inputs_outside: false,
+            output_outside: self.allow_outside || self.out.is_some(),
+        };
+        speckle_scene::safe::output_dir("output.dir", &output.dir, access)
+            .map_err(LoadError::from)?;
+        render.paths = self.paths.unwrap_or(render.paths);
+        render.seed = self.seed.unwrap_or(render.seed);
+        if let Some(out) = &self.out {
+            output.dir = out.clone();
+        }
+        Ok(())
+    }
+}
+
 /// Reads the TOML document: syntax and type errors name the key path and the line; unknown
 /// and missing keys are named.
 pub(crate) fn parse<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, LoadError> {
@@ -227,20 +251,9 @@ pub fn load_str(
     overrides: &StudyOverrides,
 ) -> Result<Study, LoadError> {
     let mut file: StudyFile = parse(text).map_err(|e| e.in_document(origin))?;
-    // The study's own directory must stay below the current one; the command line's is the
-    // user's choice.
-    let access = speckle_scene::safe::Access {
-        inputs_outside: false,
-        output_outside: overrides.allow_outside || overrides.out.is_some(),
-    };
-    speckle_scene::safe::output_dir("output.dir", &file.output.dir, access)
-        .map_err(|e| LoadError::from(e).in_document(origin))?;
-    let r = &mut file.render;
-    r.paths = overrides.paths.unwrap_or(r.paths);
-    r.seed = overrides.seed.unwrap_or(r.seed);
-    if let Some(out) = &overrides.out {
-        file.output.dir = out.clone();
-    }
+    overrides
+        .apply(&mut file.render, &mut file.output)
+        .map_err(|e| e.in_document(origin))?;
     validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
 }
 

@@ -162,18 +162,9 @@ pub fn load_tilt_shift_str(
     overrides: &StudyOverrides,
 ) -> Result<TiltShiftStudy, LoadError> {
     let mut file: TiltShiftFile = parse(text).map_err(|e| e.in_document(origin))?;
-    let access = speckle_scene::safe::Access {
-        inputs_outside: false,
-        output_outside: overrides.allow_outside || overrides.out.is_some(),
-    };
-    speckle_scene::safe::output_dir("output.dir", &file.output.dir, access)
-        .map_err(|e| LoadError::from(e).in_document(origin))?;
-    let r = &mut file.render;
-    r.paths = overrides.paths.unwrap_or(r.paths);
-    r.seed = overrides.seed.unwrap_or(r.seed);
-    if let Some(out) = &overrides.out {
-        file.output.dir = out.clone();
-    }
+    overrides
+        .apply(&mut file.render, &mut file.output)
+        .map_err(|e| e.in_document(origin))?;
     validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
 }
 
