@@ -323,11 +323,24 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         for (e, en) in self.plan.local.iter().enumerate() {
             // The terms of each copy, once (the copies of a diagonal entry share them when
             // nothing drifts).
-            let t1 = [term(a, en.s1, en.v1, false), term(a, en.s1, en.v1, true)];
+            // (The reversed term only with reversed paths: forward-only renders leave its legs
+            // unset.)
+            let both = |ends: &Ends, src: usize, sen: usize| {
+                let f = term(ends, src, sen, false);
+                [
+                    f,
+                    if reversed {
+                        term(ends, src, sen, true)
+                    } else {
+                        f
+                    },
+                ]
+            };
+            let t1 = both(a, en.s1, en.v1);
             let t2 = if std::ptr::eq(a, b) && (en.s1, en.v1) == (en.s2, en.v2) {
                 t1
             } else {
-                [term(b, en.s2, en.v2, false), term(b, en.s2, en.v2, true)]
+                both(b, en.s2, en.v2)
             };
             let mut i = e * n;
             for &(p1, g11, gb1) in &t1[..terms] {
