@@ -21,23 +21,8 @@ pub fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {
 }
 
 /// The largest combined z over the upper triangle of two covariance estimates' totals (real
-/// parts everywhere, imaginary parts off the diagonal).
+/// parts everywhere, imaginary parts off the diagonal): the library's, shared with `speckle
+/// sampling-gain`.
 pub fn max_z(a: &CovarianceEstimate, b: &CovarianceEstimate) -> f64 {
-    let (a, b) = (&a.total, &b.total);
-    let n = a.value.rows();
-    let mut worst: f64 = 0.0;
-    for i in 0..n {
-        for j in i..n {
-            let (va, sa) = a.get(i, j);
-            let (vb, sb) = b.get(i, j);
-            let zr = (va.re - vb.re).abs() / sa.re.hypot(sb.re);
-            let zi = if i == j {
-                0.0
-            } else {
-                (va.im - vb.im).abs() / sa.im.hypot(sb.im)
-            };
-            worst = worst.max(zr).max(zi);
-        }
-    }
-    worst
+    speckle::studies::nearfield::max_z(a, b)
 }

@@ -129,6 +129,18 @@ enum Command {
     /// beams; reads a study file of its own (`scenes/fig13_refocus.toml`) and writes
     /// `<name>.refocus*.npy`, a JSON sidecar and an SVG plot.
     Refocus(refocus::Args),
+    /// The near field against the brute force (Bar et al. 2020, Fig. 7, Tables 1-2): the
+    /// closed-form aperture connections of Gaussian beams against the aperture integral of
+    /// far-field per-path fields (Eqs. 9-11) in flatland, entry by entry, and the time for the
+    /// same standard error; reads a study file of its own (`scenes/fig7_bruteforce.toml`) and
+    /// writes `<name>.bruteforce*.npy`, a JSON sidecar with the runtime table and an SVG plot.
+    Bruteforce(bruteforce::Args),
+    /// Importance sampling around Gaussian beams (Bar et al. 2020, Figs. 9-10): the error of
+    /// covariance renders against path count and time with `render.beams` = off, position and
+    /// position_and_direction, and the variance x time gains; reads a study file of its own
+    /// (`scenes/fig9_sampling_gain.toml`) and writes `<name>.sampling*.npy`, a JSON sidecar and
+    /// one SVG plot per case.
+    SamplingGain(sampling_gain::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -158,6 +170,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::MemoryTilt(a) => memory_tilt::run(&a),
         Command::TiltShift(a) => tilt_shift::run(&a),
         Command::Refocus(a) => refocus::run(&a),
+        Command::Bruteforce(a) => bruteforce::run(&a),
+        Command::SamplingGain(a) => sampling_gain::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

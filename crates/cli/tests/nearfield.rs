@@ -151,3 +151,103 @@ fn gaussian_grid_fields_draw_images() {
     let sidecar = std::fs::read_to_string(out.join("gaussian_grid.fields.json")).unwrap();
     assert!(sidecar.contains("\"gaussian_grid\""), "{sidecar}");
 }
+
+/// `speckle bruteforce` (Bar et al. 2020, Fig. 7, Tables 1-2): its files, their sizes, the
+/// runtime table in the sidecar, and a bad key named with exit code 2 (the physics:
+/// `tests/nearfield_bruteforce.rs`).
+#[test]
+fn bruteforce_writes_its_entries_and_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "size = [8.0, 4.0]\nmean_free_path = 8.0\nconcentration = 20.0\n\
+                 source_offset = 1.0\nsensor_shift = 0.5\nnodes = 16\ntheta_max = 1.5\n\n\
+                 [render]\npaths = 400\nnear_paths = 400\nchunk = 150\ntiming_paths = 80\n";
+    let p = write(dir.path(), "t.toml", study);
+    let o = speckle(
+        dir.path(),
+        &["bruteforce", p.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("speed-up"), "{}", stdout(&o));
+    let out = dir.path().join("out");
+    for (key, len) in [
+        ("near", 2 * 72),
+        ("near_stderr", 2 * 72),
+        ("far", 72),
+        ("far_stderr", 72),
+        ("z", 72),
+    ] {
+        let v = npy_f64(&out.join(format!("t.bruteforce_{key}.npy")));
+        assert_eq!(v.len(), len, "{key}");
+        assert!(v.iter().all(|x| x.is_finite()), "{key}: {v:?}");
+    }
+    // The diagonal (entry 0, real part) is an intensity.
+    assert!(npy_f64(&out.join("t.bruteforce_far.npy"))[0] > 0.0);
+    assert!(npy_f64(&out.join("t.bruteforce_near.npy"))[0] > 0.0);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("t.bruteforce.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["table"].as_array().unwrap().len(), 3);
+    assert_eq!(json["plane_waves"]["sensor"], 32);
+    assert_eq!(
+        json["files"]["bruteforce_near"]["shape"],
+        serde_json::json!([2, 6, 6, 2])
+    );
+    assert!(
+        std::fs::read_to_string(out.join("t.bruteforce.svg"))
+            .unwrap()
+            .contains("brute force")
+    );
+    let p = write(
+        dir.path(),
+        "t.toml",
+        &study.replace("nodes = 16", "nodes = 2"),
+    );
+    let o = speckle(dir.path(), &["bruteforce", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nodes"), "{}", stderr(&o));
+}
+
+/// `speckle sampling-gain` (Bar et al. 2020, Figs. 9-10): its files and their shapes, one plot
+/// per case, and a bad key named with exit code 2 (the physics: `tests/nearfield_sampling.rs`).
+#[test]
+fn sampling_gain_writes_its_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "[[cases]]\nname = \"box\"\nsize = [4.0, 2.0]\nmean_free_path = 2.0\n\
+                 amplitude = [[0.0, 0.2], [6.0, 1.0]]\nreflection = true\n\n\
+                 [[cases]]\nname = \"flat\"\ndimension = 2\nsize = [6.0, 2.0]\n\
+                 mean_free_path = 2.0\n\n\
+                 [render]\npaths = 400\nsteps = 2\nreference_paths = 400\n";
+    let p = write(dir.path(), "s.toml", study);
+    let o = speckle(
+        dir.path(),
+        &["sampling-gain", p.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    assert_eq!(
+        npy_f64(&out.join("s.sampling_paths.npy")),
+        vec![100.0, 400.0]
+    );
+    for key in ["seconds", "rmse", "stderr", "median_relative_stderr"] {
+        let v = npy_f64(&out.join(format!("s.sampling_{key}.npy")));
+        assert_eq!(v.len(), 2 * 3 * 2, "{key}");
+        assert!(v.iter().all(|x| x.is_finite() && *x >= 0.0), "{key}: {v:?}");
+    }
+    // Gains over the first strategy ("off"): 1 for itself.
+    let g = npy_f64(&out.join("s.sampling_gain.npy"));
+    assert_eq!(g.len(), 2 * 3 * 2);
+    assert_eq!((g[0], g[1], g[6], g[7]), (1.0, 1.0, 1.0, 1.0));
+    for c in 0..2 {
+        let svg = std::fs::read_to_string(out.join(format!("s.sampling_gain.{c}.svg"))).unwrap();
+        assert!(svg.contains("position_and_direction RMSE"));
+    }
+    assert!(out.join("s.sampling_gain.json").exists());
+    let p = write(
+        dir.path(),
+        "s.toml",
+        &study.replace("dimension = 2", "dimension = 2\namplitude = [[1.0, 1.0]]"),
+    );
+    let o = speckle(dir.path(), &["sampling-gain", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cases[1].amplitude"), "{}", stderr(&o));
+}

@@ -8,6 +8,10 @@
 //!   effect of Gaussian beams (Bar et al. 2020, Fig. 12, `memory::TiltShiftStudy`), against
 //!   Eq. 50 (Osnabrugge et al. 2017), and the power of a phase-conjugate focus through the slab
 //!   against its displacement, shifted or shifted and tilted (Fig. 13, `memory::RefocusStudy`);
+//! - [`nearfield`]: the near-field closed forms against the brute-force aperture integral of
+//!   far-field paths (Bar et al. 2020, Fig. 7, Tables 1-2, `nearfield::BruteForceStudy`) and the
+//!   gains of importance sampling around Gaussian beams (Figs. 9-10,
+//!   `nearfield::SamplingStudy`);
 //! - [`plot`]: its figure, an SVG drawn with `plotters`;
 //! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
 //! - [`shaping`]: dynamic wavefront shaping on sampled transmission-matrix sequences (Bar et
@@ -27,6 +31,7 @@
 pub mod curves;
 pub mod examples;
 pub mod memory;
+pub mod nearfield;
 pub mod plot;
 pub mod shaping;
 

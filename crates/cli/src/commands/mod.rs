@@ -1,6 +1,7 @@
 //! The subcommands, one module each, and what the render commands share: the common arguments,
 //! the progress bar around a render, and the staging of `.npy`, PNG and JSON outputs.
 
+pub mod bruteforce;
 pub mod check;
 pub mod covariance;
 pub mod demo;
@@ -17,6 +18,7 @@ pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
 pub mod refocus;
+pub mod sampling_gain;
 pub mod shaping;
 pub mod single;
 pub mod tilt_shift;
@@ -99,14 +101,15 @@ impl Common {
 }
 
 /// The options of every study command (`memory-spectrum`, `memory-tilt`, `tilt-shift`,
-/// `refocus`).
+/// `refocus`, `bruteforce`, `sampling-gain`).
 #[derive(Debug, clap::Args)]
 pub struct StudyOptions {
     /// Output directory (replaces `output.dir`).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Sub-paths per point of the study: per wavelength (memory-spectrum), value of g
-    /// (memory-tilt), grid point (tilt-shift) or displacement (refocus) (replaces
+    /// (memory-tilt), grid point (tilt-shift) or displacement (refocus); the brute-force paths
+    /// (bruteforce); the largest path count of the sweep (sampling-gain) (replaces
     /// `render.paths`).
     #[arg(long, value_name = "N")]
     pub paths: Option<u64>,
@@ -137,6 +140,48 @@ impl StudyOptions {
             allow_outside: self.allow_outside,
         }
     }
+}
+
+impl StudyOptions {
+    /// Before any work: sets the threads and ctrl-c, checks the output directory `dir`, refuses
+    /// what the estimate `cost` says exceeds the machine (unless `--force`) naming the field in
+    /// the study `origin`, and prints the estimate (unless `-q`). Returns the empty staging area.
+    pub fn start(
+        &self,
+        dir: &Path,
+        origin: &str,
+        name: &str,
+        cost: Estimate,
+    ) -> anyhow::Result<Staged> {
+        set_threads(self.threads)?;
+        install_interrupt_handler(true);
+        let staged = prepare(dir)?;
+        cost::guard(&cost, cost::machine_memory(), self.force)
+            .map_err(|e| LoadError::from(e).in_document(origin))?;
+        if !self.quiet {
+            say!("{name}: estimate: {}", cost.describe());
+        }
+        Ok(staged)
+    }
+}
+
+/// Stages each study array as `{name}.{key}.npy` and returns the sidecar's `files` object
+/// (file, shape and content per key).
+pub fn stage_study_arrays(
+    staged: &mut Staged,
+    name: &str,
+    arrays: Vec<speckle::studies::memory::Array>,
+) -> Value {
+    let mut files = json!({});
+    for array in arrays {
+        let file = format!("{name}.{}.npy", array.key);
+        files[array.key] = json!({"file": file, "shape": array.shape, "content": array.content});
+        staged.add(
+            file,
+            speckle::scene::npy::encode_f8(&array.shape, &array.data),
+        );
+    }
+    files
 }
 
 /// Sets the number of worker threads (all cores when `None`).

@@ -43,7 +43,7 @@
 
 mod refocus;
 mod render;
-mod study;
+pub(crate) mod study;
 mod tilt;
 mod tilt_shift;
 

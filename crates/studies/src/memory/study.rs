@@ -209,14 +209,25 @@ impl StudyOverrides {
         render: &mut StudyRender,
         output: &mut StudyOutput,
     ) -> Result<(), LoadError> {
+        self.apply_to(&mut render.paths, &mut render.seed, output)
+    }
+
+    /// [`Self::apply`] for a study whose `[render]` is its own: `paths` and `seed` are the
+    /// values that `--paths` and `--seed` replace.
+    pub fn apply_to(
+        &self,
+        paths: &mut u64,
+        seed: &mut u64,
+        output: &mut StudyOutput,
+    ) -> Result<(), LoadError> {
         let access = speckle_scene::safe::Access {
             inputs_outside: false,
             output_outside: self.allow_outside || self.out.is_some(),
         };
         speckle_scene::safe::output_dir("output.dir", &output.dir, access)
             .map_err(LoadError::from)?;
-        render.paths = self.paths.unwrap_or(render.paths);
-        render.seed = self.seed.unwrap_or(render.seed);
+        *paths = self.paths.unwrap_or(*paths);
+        *seed = self.seed.unwrap_or(*seed);
         if let Some(out) = &self.out {
             output.dir = out.clone();
         }
