@@ -197,6 +197,28 @@ fn bruteforce_writes_its_entries_and_table() {
             .unwrap()
             .contains("brute force")
     );
+    // The same numbers on 3 threads.
+    let o = speckle(
+        dir.path(),
+        &[
+            "bruteforce",
+            p.to_str().unwrap(),
+            "--out",
+            "out3",
+            "--threads",
+            "3",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for key in ["near", "near_stderr", "far", "far_stderr", "z"] {
+        let file = format!("t.bruteforce_{key}.npy");
+        assert_eq!(
+            std::fs::read(out.join(&file)).unwrap(),
+            std::fs::read(dir.path().join("out3").join(&file)).unwrap(),
+            "{key}"
+        );
+    }
     let p = write(
         dir.path(),
         "t.toml",
@@ -242,6 +264,28 @@ fn sampling_gain_writes_its_sweep() {
         assert!(svg.contains("position_and_direction RMSE"));
     }
     assert!(out.join("s.sampling_gain.json").exists());
+    // The same numbers on 1 thread.
+    let o = speckle(
+        dir.path(),
+        &[
+            "sampling-gain",
+            p.to_str().unwrap(),
+            "--out",
+            "out1",
+            "--threads",
+            "1",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for key in ["rmse", "stderr", "median_relative_stderr"] {
+        let file = format!("s.sampling_{key}.npy");
+        assert_eq!(
+            std::fs::read(out.join(&file)).unwrap(),
+            std::fs::read(dir.path().join("out1").join(&file)).unwrap(),
+            "{key}"
+        );
+    }
     let p = write(
         dir.path(),
         "s.toml",

@@ -18,12 +18,9 @@ pub struct Args {
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let s = load_bruteforce_file(&a.study, &a.opts.overrides())?;
-    let mut staged = a.opts.start(
-        &s.file.output.dir,
-        &s.origin,
-        &s.name,
-        s.estimate(threads()),
-    )?;
+    let mut staged = a
+        .opts
+        .start(&s.file.output.dir, &s.origin, &s.name, |t| s.estimate(t))?;
     let r = &s.file.render;
     let total = (2 * r.near_paths)
         .saturating_add(r.paths)

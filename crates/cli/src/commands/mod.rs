@@ -144,18 +144,20 @@ impl StudyOptions {
 
 impl StudyOptions {
     /// Before any work: sets the threads and ctrl-c, checks the output directory `dir`, refuses
-    /// what the estimate `cost` says exceeds the machine (unless `--force`) naming the field in
-    /// the study `origin`, and prints the estimate (unless `-q`). Returns the empty staging area.
+    /// what the estimate (`estimate` of the thread count, asked once the threads are set)
+    /// says exceeds the machine (unless `--force`) naming the field in the study `origin`, and
+    /// prints the estimate (unless `-q`). Returns the empty staging area.
     pub fn start(
         &self,
         dir: &Path,
         origin: &str,
         name: &str,
-        cost: Estimate,
+        estimate: impl FnOnce(usize) -> Estimate,
     ) -> anyhow::Result<Staged> {
         set_threads(self.threads)?;
         install_interrupt_handler(true);
         let staged = prepare(dir)?;
+        let cost = estimate(threads());
         cost::guard(&cost, cost::machine_memory(), self.force)
             .map_err(|e| LoadError::from(e).in_document(origin))?;
         if !self.quiet {

@@ -18,12 +18,9 @@ pub struct Args {
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let s = load_sampling_file(&a.study, &a.opts.overrides())?;
-    let mut staged = a.opts.start(
-        &s.file.output.dir,
-        &s.origin,
-        &s.name,
-        s.estimate(threads()),
-    )?;
+    let mut staged = a
+        .opts
+        .start(&s.file.output.dir, &s.origin, &s.name, |t| s.estimate(t))?;
     let progress = CliProgress::new(s.total_paths(), "paths", &s.name, a.opts.quiet, None);
     let result = s.render(&progress);
     progress.finish();

@@ -288,9 +288,7 @@ fn validate(
         ("render.near_paths", r.near_paths),
         ("render.timing_paths", r.timing_paths),
     ] {
-        if v < 8 {
-            return Err(bad(field, format!("must be at least 8 (got {v})")));
-        }
+        super::check_paths(field, v)?;
     }
     if r.chunk == 0 {
         return Err(bad("render.chunk", "must be at least 1"));
@@ -451,17 +449,24 @@ impl BruteForceStudy {
     }
 
     /// The largest deviation of the source apertures' plane-wave superposition from the beams'
-    /// closed-form fields on the unit grid over the box.
+    /// closed-form fields on the unit grid over the box (spacing `ceil(size / 64)` beyond 64
+    /// wavelengths).
     pub fn quadrature_error(&self) -> Result<f64, EstimatorError> {
         let (src, _) = self.beams()?;
         let nodes = self.aperture(DVec3::Y);
         let [lat, depth] = self.file.size;
         let k = self.k();
+        // A unit grid, coarser in a box over 64 wavelengths.
+        let (sx, sy) = ((lat / 64.0).ceil().max(1.0), (depth / 64.0).ceil().max(1.0));
         let mut worst: f64 = 0.0;
         for b in &src {
-            for ix in 0..=(lat.floor() as usize) {
-                for iy in 0..=(depth.floor() as usize) {
-                    let x = DVec3::new(-0.5 * lat + ix as f64, -0.5 * depth + iy as f64, 0.0);
+            for ix in 0..=((lat / sx).floor() as usize) {
+                for iy in 0..=((depth / sy).floor() as usize) {
+                    let x = DVec3::new(
+                        -0.5 * lat + sx * ix as f64,
+                        -0.5 * depth + sy * iy as f64,
+                        0.0,
+                    );
                     let quad: Complex64 = nodes
                         .iter()
                         .map(|(w, m)| *m * Complex64::from_polar(1.0, k * w.dot(x - b.focus)))
@@ -1045,6 +1050,10 @@ mod tests {
         refused(
             &format!("{GOOD}[render]\nnear_paths = 1\n"),
             "render.near_paths",
+        );
+        refused(
+            &format!("{GOOD}[render]\npaths = 18446744073709551615\n"),
+            "render.paths",
         );
         refused(&format!("{GOOD}colour = 1\n"), "colour");
         refused("size = [16.0, 6.0]\n", "mean_free_path");

@@ -27,6 +27,21 @@ pub use sampling::{
     relative_ses, render_strategy, strategy_name,
 };
 
+/// Most paths of one render of these studies (so that their sums cannot overflow; the cost
+/// guard refuses far fewer on any machine).
+pub const MAX_PATHS: u64 = 1_000_000_000_000;
+
+/// Checks a path count: at least 8, at most [`MAX_PATHS`].
+pub(crate) fn check_paths(field: &str, v: u64) -> Result<(), speckle_scene::SceneError> {
+    if !(8..=MAX_PATHS).contains(&v) {
+        return Err(speckle_scene::validate::invalid(
+            field,
+            format!("must be in 8..={MAX_PATHS} (got {v})"),
+        ));
+    }
+    Ok(())
+}
+
 /// Gauss-Legendre nodes and weights on [-1, 1] (Newton on the three-term recurrence).
 pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     (0..n)

@@ -498,6 +498,8 @@ fn validate(
             format!("must be in 2..=100 (got {})", r.ratio),
         ));
     }
+    super::check_paths("render.paths", r.paths)?;
+    super::check_paths("render.reference_paths", r.reference_paths)?;
     let mut paths = Vec::with_capacity(r.steps);
     let mut p = r.paths;
     for _ in 0..r.steps {
@@ -513,12 +515,6 @@ fn validate(
                  be at least 8 (got {})",
                 paths[0]
             ),
-        ));
-    }
-    if r.reference_paths < 8 {
-        return Err(bad(
-            "render.reference_paths",
-            format!("must be at least 8 (got {})", r.reference_paths),
         ));
     }
     Ok(SamplingStudy {
