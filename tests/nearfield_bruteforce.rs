@@ -39,7 +39,8 @@
 //! sides: per path 5-17 us (closed forms) against 10-23 us (brute force), per-path variance
 //! 1.46x: **2x to 4x for the same standard error** on this 16 x 6 box (2.4x in the last run).
 //! With the default importance sampling around the beams (`render.beams`, which needs the
-//! closed forms' beam model) the closed forms' variance per path is 4.7x lower: **11.5x**.
+//! closed forms' beam model) the closed forms' variance per path is 4.7x lower: **9x to 15x**
+//! over runs (the times vary with the machine's load; the variances are bitwise the same).
 //! The brute force here is the quadrature applied per path, inside the
 //! estimator (Eq. 9 on each path's fields); its cost grows as `Q P ~ (W NA / lambda)^2`
 //! (`^4` in 3D), the closed forms' does not. The literal Eq. 11 (the far-field covariance of
@@ -78,7 +79,7 @@ fn near_field_equals_the_aperture_integral_of_far_field_paths() {
     let study = load_bruteforce_str(
         STUDY,
         "nearfield_bruteforce",
-        "t",
+        "nearfield_bruteforce",
         &StudyOverrides::default(),
     )
     .unwrap();
