@@ -347,6 +347,12 @@ pub struct NearRender {
     pub z: Vec<f64>,
     /// The per-path variance summed over the diagonal (real parts).
     pub variance: f64,
+    /// `sqrt(mean |near - brute|^2)` over the upper triangle, over the brute force's mean
+    /// intensity (Table 2's RMSE with the brute force as the reference).
+    pub rmse: f64,
+    /// The RMSE that the two renders' standard errors alone would give, on the same scale
+    /// (`sqrt(mean(se_near^2 + se_brute^2))`, real and imaginary parts).
+    pub rmse_expected: f64,
 }
 
 /// The result of a brute-force comparison.
@@ -695,6 +701,17 @@ impl BruteForceStudy {
                         }
                     }
                 }
+                let (mut d2, mut s2, mut k) = (0.0, 0.0, 0.0);
+                for a in 0..J {
+                    for b in a..J {
+                        let (vn, sn) = estimate.total.get(a, b);
+                        let se = brute_se[a * J + b];
+                        d2 += (vn - brute[a * J + b]).norm_sqr();
+                        s2 += sn.norm_sqr() + se.norm_sqr();
+                        k += 1.0;
+                    }
+                }
+                let scale = (0..J).map(|a| brute[a * J + a].re).sum::<f64>() / J as f64;
                 NearRender {
                     label,
                     strategy,
@@ -702,6 +719,8 @@ impl BruteForceStudy {
                     time_per_path,
                     z,
                     variance,
+                    rmse: (d2 / k).sqrt() / scale,
+                    rmse_expected: (s2 / k).sqrt() / scale,
                 }
             })
             .collect();
@@ -963,6 +982,14 @@ impl BruteForce {
             J * (J + 1) / 2,
             self.literal_updates() / qp
         );
+        for r in &self.near {
+            let _ = writeln!(
+                o,
+                "  near field, {}: RMSE against the brute force {:.2e} of the mean intensity \
+                 (standard errors alone: {:.2e})",
+                r.label, r.rmse, r.rmse_expected
+            );
+        }
         let _ = writeln!(o, "  largest deviation {:.2} combined SE", self.z_max());
         o
     }
@@ -1003,6 +1030,12 @@ impl BruteForce {
                     self.brute_seconds / self.brute_paths as f64 * 1e6,
             },
             "largest_deviation_se": self.z_max(),
+            "rmse_against_brute_force": self.near.iter().map(|r| json!({
+                "render": r.label,
+                "rmse": r.rmse,
+                "rmse_from_standard_errors": r.rmse_expected,
+                "scale": "the brute force's mean intensity (mean of its diagonal)",
+            })).collect::<Vec<_>>(),
             "table": serde_json::to_value(self.table()).unwrap_or(Value::Null),
             "updates_per_vertex": {
                 "literal_eq11": self.literal_updates(),
