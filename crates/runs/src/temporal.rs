@@ -844,3 +844,98 @@ impl Reference {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speckle_scene::{Overrides, load_str};
+    use speckle_stats::NoProgress;
+    use std::path::Path;
+
+    const SCENE: &str = r#"
+wavelength = 1.0
+[medium]
+size = [12.0, 12.0, 4.0]
+mean_free_path = 2.0
+[[sources]]
+type = "plane"
+direction = [0.0, 0.0, 1.0]
+[[sensors]]
+type = "far"
+direction = [0.0, 0.0, 1.0]
+[motion]
+diffusion = 0.002
+lags = [0.0, 1.0, 4.0]
+[render]
+paths = 3001
+seed = 4
+"#;
+
+    fn problem() -> Problem {
+        load_str(SCENE, "<test>", Path::new("."), "t", &Overrides::default()).unwrap()
+    }
+
+    /// One render is bitwise [`temporal`]; several share the paths and pool to their mean,
+    /// with `g1` from the pooled correlation.
+    #[test]
+    fn renders_pool_independent_renders() {
+        let p = problem();
+        let one = temporal_renders(&p, 1, &NoProgress).unwrap();
+        assert_eq!(one.pooled, temporal(&p, &NoProgress).unwrap());
+        let r = temporal_renders(&p, 3, &NoProgress).unwrap();
+        assert_eq!(r.renders.len(), 3);
+        let paths: Vec<u64> = r.renders.iter().map(|t| t.paths).collect();
+        assert_eq!((paths, r.pooled.paths), (vec![1001, 1000, 1000], 3001));
+        assert_ne!(r.renders[0].correlation, r.renders[1].correlation);
+        for l in 0..3 {
+            let mean: Complex64 = r
+                .renders
+                .iter()
+                .map(|t| t.correlation[l])
+                .sum::<Complex64>()
+                / 3.0;
+            assert!((r.pooled.correlation[l] - mean).norm() <= 1e-15 * mean.norm());
+            let se = r
+                .renders
+                .iter()
+                .map(|t| t.correlation_stderr[l].re.powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / 3.0;
+            assert!((r.pooled.correlation_stderr[l].re - se).abs() <= 1e-15 * se);
+        }
+        let g1 = r.pooled.g1.as_ref().unwrap();
+        assert_eq!(g1[0], Complex64::new(1.0, 0.0));
+        assert_eq!(g1[2], r.pooled.correlation[2] / r.pooled.correlation[0].re);
+        // The comparison: |g1| of the pool, zero deviation at lag 0, at least 2 renders.
+        let reference = Reference::parse("t,g1\n0,1\n1,0.5\n4,0.25\n", Path::new("r.csv")).unwrap();
+        let c = reference.compare(&p, &r).unwrap();
+        assert_eq!(c.g1[0], 1.0);
+        assert_eq!((c.g1_stderr[0], c.deviation[0]), (0.0, 0.0));
+        assert!((c.g1[2] - g1[2].norm()).abs() <= 1e-15);
+        assert!(c.g1_stderr[1] > 0.0 && c.g1_stderr[2] > 0.0);
+        let e = reference.compare(&p, &one).unwrap_err();
+        assert!(e.to_string().contains("groups"), "{e}");
+    }
+
+    #[test]
+    fn references_read_the_first_and_last_columns() {
+        let text = "\u{feff}# MCX\n\ntime,raw,g1_normalized\n0.0, 0.1, 1.0\n# mid\n1e-6,0.09,0.9\n";
+        let r = Reference::parse(text, Path::new("r.csv")).unwrap();
+        assert_eq!(r.column, "g1_normalized");
+        assert_eq!((r.lags, r.g1), (vec![0.0, 1e-6], vec![1.0, 0.9]));
+        // Without a header.
+        let r = Reference::parse("0,1\n2,0.5\n", Path::new("r.csv")).unwrap();
+        assert_eq!((r.column.as_str(), r.lags.len()), ("g1", 2));
+        for (text, wanted) in [
+            ("t,g1\n0,1\n1,nan\n", "line 3: not a finite number"),
+            ("t,g1\n0,1\n1\n", "line 3: expected the lag"),
+            ("t,g1\n0,1\n1,2,3\n", "line 3: 3 columns"),
+            ("# nothing\n", "no rows"),
+        ] {
+            let e = Reference::parse(text, Path::new("r.csv")).unwrap_err();
+            assert!(e.to_string().contains(wanted), "{text}: {e}");
+            assert!(e.to_string().starts_with("r.csv: reference"), "{e}");
+        }
+    }
+}
