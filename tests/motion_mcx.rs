@@ -1,8 +1,10 @@
 //! The authors' MCX temporal correlation (`validation/data/mcx_dcs_validation/g1_mcx.csv`; the
-//! scene of `shared/notes/spatiotemporal-2023.md` Sec. 8.7): a 1 cm cube, mean free path 1 mm,
-//! isotropic, lossless, lambda = 500 nm, dynamic rods (0.1 mm wide in x and z, every 0.3 mm,
-//! through y: 1/9 of the volume, D = 1e-6 cm^2/s, the rest static), source and sensor 5 mm apart
-//! on the face z = 0; `g1(t)` for t = 0 .. 50 us.
+//! scene of `shared/notes/spatiotemporal-2023.md` Sec. 8.7) against the shipped scene
+//! `scenes/fig5_mcx_rods.toml` (the one definition of the configuration; `speckle g1` renders
+//! it with `--reference`): a 1 cm cube, mean free path 1 mm, isotropic, lossless,
+//! lambda = 500 nm, dynamic rods (0.1 mm wide in x and z, every 0.3 mm, through y: 1/9 of the
+//! volume, D = 1e-6 cm^2/s, the rest static; `scenes/fig5_mcx_rods.npy`), source and sensor
+//! 5 mm apart on the face z = 0; `g1(t)` for t = 0 .. 50 us.
 //!
 //! Source and sensor are isotropic points on the face, as in the authors' example: first
 //! vertices are sampled around them (Build 3 of issue 12), so the estimator has finite variance
@@ -21,13 +23,9 @@
 use num_complex::Complex64;
 mod common_g1;
 
-use speckle::estimators::{
-    Coherence, CovarianceOptions, Entries, NoProgress, Pair, Scene, Sensor, Source,
-    render_correlation,
-};
-use speckle::medium::{Aabb, DVec3, Material, VoxelGrid};
-use speckle::motion::{Motion, MotionModel};
-use speckle::phase::Phase;
+use speckle::estimators::{CovarianceOptions, Entries, NoProgress, render_correlation};
+use speckle::medium::{DVec3, Medium};
+use speckle::scene::Problem;
 
 fn mcx() -> Vec<(f64, f64)> {
     let text = std::fs::read_to_string(concat!(
@@ -44,52 +42,33 @@ fn mcx() -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// The scene: the rods' voxel grid, source and sensor on the face.
-fn scene() -> Scene<VoxelGrid, Phase> {
-    let n = 100;
-    let b = Aabb::new(DVec3::new(-0.5, -0.5, 0.0), DVec3::new(0.5, 0.5, 1.0)).unwrap();
-    // Voxels 0.1 mm in x and z, one through y; dynamic where both indices are 0 mod 3.
-    let mut ids = vec![0u32; n * n];
-    for iz in 0..n {
-        for ix in 0..n {
-            if ix % 3 == 0 && iz % 3 == 0 {
-                ids[iz * n + ix] = 1;
-            }
-        }
-    }
-    let mats = vec![Material::single(10.0, 0.0), Material::single(10.0, 0.0)];
-    let grid = VoxelGrid::from_materials(b, [n, 1, n], ids, mats).unwrap();
-    Scene::new(
-        grid,
-        Phase::Isotropic,
-        500e-7,
-        vec![Source::point(DVec3::new(-0.25, 0.0, 0.0))],
-        vec![Sensor::point(DVec3::new(0.25, 0.0, 0.0))],
-        Pair::all(1, 1),
-    )
-    .unwrap()
+/// The shipped scene, whose lags are MCX's.
+fn scene() -> Problem {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig5_mcx_rods.toml");
+    let p = speckle::scene::load::load_file(&file, &Default::default()).unwrap();
+    let lags = &p.motion.as_ref().expect("[motion]").lags;
+    let mcx_lags: Vec<f64> = mcx().iter().map(|r| r.0).collect();
+    assert_eq!(lags, &mcx_lags, "the scene's lags are the MCX curve's");
+    p
 }
 
 /// `C(t)` and its standard error at the MCX lags, from `paths` paths of seed `seed`.
-fn render(scene: &Scene<VoxelGrid, Phase>, paths: u64, seed: u64) -> Vec<(Complex64, Complex64)> {
-    let model =
-        MotionModel::per_material(vec![Motion::STATIC, Motion::brownian(1e-6).unwrap()]).unwrap();
-    let lags: Vec<f64> = mcx().iter().map(|r| r.0).collect();
+fn render(p: &Problem, paths: u64, seed: u64) -> Vec<(Complex64, Complex64)> {
+    let motion = p.motion.as_ref().expect("[motion]");
     let c = render_correlation(
-        scene,
-        &model,
-        &lags,
+        &p.scene,
+        &motion.model,
+        &motion.lags,
         &Entries::Diagonal,
         &CovarianceOptions {
             paths,
             seed,
-            coherence: Coherence::ForwardAndReversed,
-            ..Default::default()
+            ..speckle::runs::covariance_options(p)
         },
         &NoProgress,
     )
     .unwrap();
-    (0..lags.len()).map(|l| c.total(l, 0)).collect()
+    (0..motion.lags.len()).map(|l| c.total(l, 0)).collect()
 }
 
 #[test]
@@ -138,7 +117,7 @@ fn mcx_g1_is_reproduced() {
 fn mcx_dynamic_rods() {
     let reference = mcx();
     let scene = scene();
-    let dynamic = ids_fraction(scene.medium());
+    let dynamic = ids_fraction(scene.scene.medium());
     let paths = std::env::var("SPECKLE_MCX_PATHS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -178,8 +157,7 @@ fn mcx_dynamic_rods() {
 }
 
 /// The fraction of voxels of material 1.
-fn ids_fraction(g: &VoxelGrid) -> f64 {
-    use speckle::medium::Medium;
+fn ids_fraction(g: &impl Medium) -> f64 {
     let n = 100;
     let mut dynamic = 0;
     for iz in 0..n {

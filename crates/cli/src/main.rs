@@ -62,8 +62,9 @@ enum Command {
     /// vertex, for many sensors).
     Intensity(covariance::Args),
     /// Temporal field correlations of moving scatterers (Bar et al. 2023): C(t) and
-    /// g1(t) = C(t) / C(0) of every pair at the scene's `[motion]` lags.
-    G1(covariance::Args),
+    /// g1(t) = C(t) / C(0) of every pair at the scene's `[motion]` lags; with `--reference`,
+    /// compared with a reference curve (the authors' MCX curve of Fig. 5, for one).
+    G1(g1::G1Args),
     /// Spatio-temporal map of moving scatterers (Bar et al. 2023, Eqs. 36-37, Fig. 7): the
     /// correlation C[0, k](t) of the first pair with every pair k at the scene's `[motion]`
     /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the

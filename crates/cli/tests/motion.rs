@@ -81,6 +81,127 @@ fn g1_zero_lag_is_the_intensity_and_decays() {
     assert!(svg.contains("|g1(t)|") && svg.contains("pair 1"), "{svg}");
 }
 
+/// `speckle g1 --reference`: the reference at the scene's lags (rows matched by lag, in any
+/// order, a header and comments skipped), `|g1|` of the pooled renders with jackknife errors,
+/// the deviation `(|g1| - reference) / se`, the curve in the plot and the summary; a reference
+/// that cannot be compared exits with code 2 naming what is wrong, before any render.
+#[test]
+fn g1_compares_with_a_reference_curve() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = "\n[motion]\ndiffusion = 0.002\nlags = [0.0, 1.0, 4.0]\n";
+    let two_pairs = format!("{SCENE}{motion}");
+    // One pair: `pairs` comes before the first table.
+    let text = two_pairs.replacen(
+        "wavelength = 1.0\n",
+        "wavelength = 1.0\npairs = [[0, 0]]\n",
+        1,
+    );
+    let scene = write(dir.path(), "m.toml", &text);
+    let s = scene.to_str().unwrap();
+    let csv = "# a reference\nt_s,C,g1\n4.0,0.1,0.5\n0.0,0.2,1.0\n\n1.0,0.15,0.9\n2.0,0.1,0.7\n";
+    let reference = write(dir.path(), "ref.csv", csv);
+    let r = reference.to_str().unwrap();
+    let o = speckle(
+        dir.path(),
+        &[
+            "g1",
+            s,
+            "--reference",
+            r,
+            "--groups",
+            "4",
+            "--out",
+            "out",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    assert_eq!(
+        npy_f64(&out.join("m.g1_reference.npy")),
+        vec![1.0, 0.9, 0.5]
+    );
+    let g = npy_f64(&out.join("m.g1.npy"));
+    let se = npy_f64(&out.join("m.g1_abs_stderr.npy"));
+    let z = npy_f64(&out.join("m.g1_deviation.npy"));
+    assert_eq!((se[0], z[0]), (0.0, 0.0));
+    for l in 1..3 {
+        let abs = g[2 * l].hypot(g[2 * l + 1]);
+        assert!(
+            se[l] > 0.0 && se[l] < 0.1 * abs,
+            "lag {l}: {abs} +- {}",
+            se[l]
+        );
+        let want = (abs - [1.0, 0.9, 0.5][l]) / se[l];
+        assert!(
+            (z[l] - want).abs() <= 1e-9 * want.abs(),
+            "lag {l}: {} vs {want}",
+            z[l]
+        );
+    }
+    let svg = std::fs::read_to_string(out.join("m.g1.svg")).unwrap();
+    assert!(svg.contains("reference (ref.csv)") && svg.contains("jackknife"));
+    let json = std::fs::read_to_string(out.join("m.g1.json")).unwrap();
+    assert!(
+        json.contains("\"groups\": 4") && json.contains("\"column\": \"g1\""),
+        "{json}"
+    );
+    // Without --reference, --groups is refused; so is one render.
+    for args in [
+        vec!["--groups", "4"],
+        vec!["--reference", r, "--groups", "1"],
+    ] {
+        let o = speckle(dir.path(), &[&["g1", s, "-q"][..], &args].concat());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+    }
+    // References that cannot be compared.
+    let two_pairs = write(dir.path(), "two.toml", &two_pairs);
+    for (scene, csv, wanted) in [
+        (
+            s,
+            "t,g1\n0.0,1.0\n1.0,0.9\n",
+            "no row at motion.lags[2] = 4",
+        ),
+        (s, "t,g1\n0.0,0.2\n1.0,0.9\n4.0,0.5\n", "1 at lag 0"),
+        (
+            s,
+            "t,g1\n0.0,1.0\n1.0,abc\n4.0,0.5\n",
+            "line 3: not a finite number",
+        ),
+        (s, "t,g1\n0.0,1.0\n1.0,0.9,3\n", "line 3: 3 columns"),
+        (s, "t,g1\n", "no rows of numbers"),
+        (
+            two_pairs.to_str().unwrap(),
+            "t,g1\n0.0,1.0\n1.0,0.9\n4.0,0.5\n",
+            "has 2",
+        ),
+    ] {
+        let bad = write(dir.path(), "bad.csv", csv);
+        let o = speckle(
+            dir.path(),
+            &[
+                "g1",
+                scene,
+                "--reference",
+                bad.to_str().unwrap(),
+                "--out",
+                "bad",
+                "-q",
+            ],
+        );
+        assert_eq!(o.status.code(), Some(2), "{csv}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(wanted) && stderr(&o).contains("bad.csv"),
+            "{csv}: {}",
+            stderr(&o)
+        );
+        assert!(!dir.path().join("bad").exists(), "{csv}: wrote files");
+    }
+    let o = speckle(dir.path(), &["g1", s, "--reference", "missing.csv", "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("missing.csv"), "{}", stderr(&o));
+}
+
 #[test]
 fn bad_motion_names_the_field() {
     let dir = tempfile::tempdir().unwrap();

@@ -733,6 +733,43 @@ fn map<'py>(
     Ok(d)
 }
 
+/// Renders tracking (`speckle tracking`; Bar et al. 2023, Eqs. 38-39, Fig. 9): the temporal
+/// correlation of the scene's point source and point sensor in its drifting medium without
+/// tracking, with both shifted by `tU` over each lag, and with the drift removed.
+#[pyfunction]
+#[pyo3(signature = (problem, threads=None, force=false))]
+fn tracking<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    threads: Option<usize>,
+    force: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = &problem.p;
+    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    temporal::tracking_check(p).map_err(|e| run_error(py, e))?;
+    temporal::guard(p, Command::Tracking, t, force).map_err(|e| run_error(py, e))?;
+    let r = interruptible(py, threads, |pr| temporal::tracking(p, pr))?
+        .map_err(|e| run_error(py, e))?;
+    let shape = [3, r.lags.len()];
+    let d = PyDict::new(py);
+    d.set_item("kind", "tracking")?;
+    d.set_item("tracking_correlation", c16(py, &r.correlation, &shape)?)?;
+    d.set_item(
+        "tracking_correlation_stderr",
+        c16(py, &r.correlation_stderr, &shape)?,
+    )?;
+    d.set_item(
+        "tracking_normalised",
+        PyArray1::from_vec(py, r.normalised()).reshape(shape)?,
+    )?;
+    d.set_item("tracking_lags", PyArray1::from_slice(py, &r.lags))?;
+    d.set_item("curves", PyTuple::new(py, temporal::TRACKING_CURVES)?)?;
+    d.set_item("drift", PyTuple::new(py, r.drift)?)?;
+    d.set_item("max_deviation", PyTuple::new(py, r.max_deviation)?)?;
+    d.set_item("paths", r.paths)?;
+    Ok(d)
+}
+
 /// The speckle mean of every pair (closed form; `speckle mean`).
 #[pyfunction]
 fn mean<'py>(py: Python<'py>, problem: &PyProblem) -> PyResult<Bound<'py, PyDict>> {
@@ -934,6 +971,7 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mean, m)?)?;
     m.add_function(wrap_pyfunction!(g1, m)?)?;
     m.add_function(wrap_pyfunction!(map, m)?)?;
+    m.add_function(wrap_pyfunction!(tracking, m)?)?;
     m.add_function(wrap_pyfunction!(field_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     Ok(())

@@ -69,13 +69,22 @@ pub fn guard(
 /// (an error naming `motion` when it has none) and derives `g1`, `g2` and `K(T)`.
 pub fn temporal(p: &Problem, progress: &dyn Progress) -> Result<Temporal, RunError> {
     let motion = motion(p)?;
-    let opts = crate::covariance_options(p);
+    render_temporal(p, motion, &crate::covariance_options(p), progress)
+}
+
+/// [`temporal`] with the options `opts`.
+fn render_temporal(
+    p: &Problem,
+    motion: &MotionSettings,
+    opts: &speckle_estimators::CovarianceOptions,
+    progress: &dyn Progress,
+) -> Result<Temporal, RunError> {
     let est = render_correlation(
         &p.scene,
         &motion.model,
         &motion.lags,
         &Entries::Diagonal,
-        &opts,
+        opts,
         progress,
     )?;
     let (j, nl) = (p.pairs(), motion.lags.len());
@@ -85,34 +94,134 @@ pub fn temporal(p: &Problem, progress: &dyn Progress) -> Result<Temporal, RunErr
         c.extend(v);
         se.extend(s);
     }
-    let g1 = motion.lags.iter().position(|t| *t == 0.0).and_then(|z| {
-        let mut out = Vec::with_capacity(j * nl);
-        for curve in c.chunks_exact(nl) {
-            out.extend(correlation::normalise(curve, z).ok()?);
+    Ok(Temporal::from_correlation(
+        motion.lags.clone(),
+        j,
+        c,
+        se,
+        est.paths,
+    ))
+}
+
+impl Temporal {
+    /// The temporal correlations `correlation` (`J x L`, pair-major) with their standard
+    /// errors, and what is derived from them: `g1`, `g2` and `K(T)`.
+    fn from_correlation(
+        lags: Vec<f64>,
+        pairs: usize,
+        correlation: Vec<Complex64>,
+        correlation_stderr: Vec<Complex64>,
+        paths: u64,
+    ) -> Self {
+        let nl = lags.len();
+        let g1 = lags.iter().position(|t| *t == 0.0).and_then(|z| {
+            let mut out = Vec::with_capacity(pairs * nl);
+            for curve in correlation.chunks_exact(nl) {
+                out.extend(correlation::normalise(curve, z).ok()?);
+            }
+            Some(out)
+        });
+        let g2 = g1
+            .as_ref()
+            .map(|g| g.iter().map(|g| 1.0 + g.norm_sqr()).collect::<Vec<f64>>());
+        let contrast = g1.as_ref().and_then(|g| {
+            let mut out = Vec::with_capacity(pairs * nl);
+            for curve in g.chunks_exact(nl) {
+                let sq: Vec<f64> = curve.iter().map(|g| g.norm_sqr()).collect();
+                out.extend(correlation::contrast_curve(&lags, &sq, 1.0).ok()?);
+            }
+            Some(out)
+        });
+        Temporal {
+            lags,
+            pairs,
+            correlation,
+            correlation_stderr,
+            g1,
+            g2,
+            contrast,
+            paths,
         }
-        Some(out)
-    });
-    let g2 = g1
-        .as_ref()
-        .map(|g| g.iter().map(|g| 1.0 + g.norm_sqr()).collect::<Vec<f64>>());
-    let contrast = g1.as_ref().and_then(|g| {
-        let mut out = Vec::with_capacity(j * nl);
-        for curve in g.chunks_exact(nl) {
-            let sq: Vec<f64> = curve.iter().map(|g| g.norm_sqr()).collect();
-            out.extend(correlation::contrast_curve(&motion.lags, &sq, 1.0).ok()?);
-        }
-        Some(out)
-    });
-    Ok(Temporal {
-        lags: motion.lags.clone(),
-        pairs: j,
-        correlation: c,
-        correlation_stderr: se,
-        g1,
-        g2,
-        contrast,
-        paths: est.paths,
-    })
+    }
+}
+
+/// [`temporal`] as independent renders, pooled: what a comparison with a [`Reference`] needs
+/// (the jackknife over the renders gives the standard error of `|g1| = |C(t)| / C(0)`, whose
+/// numerator and denominator come from the same paths).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Renders {
+    /// The pooled estimate: the mean of the renders' `C(t)`, standard errors
+    /// `sqrt(sum se_g^2) / G` (per part), `g1`, `g2` and `K(T)` from the pooled `C(t)`, the
+    /// paths of all renders.
+    pub pooled: Temporal,
+    /// The renders.
+    pub renders: Vec<Temporal>,
+}
+
+/// Renders [`temporal`] of `p` as `groups` independent renders that share `render.paths`
+/// (the first `render.paths % groups` one path more), render `g` from the seed
+/// `derive_seed(seed, g)` (one render: the scene's seed, bitwise [`temporal`]), and pools them
+/// ([`Renders`]). Each render needs at least 2 paths (an error naming `render.paths`).
+pub fn temporal_renders(
+    p: &Problem,
+    groups: usize,
+    progress: &dyn Progress,
+) -> Result<Renders, RunError> {
+    use speckle_stats::rng::derive_seed;
+    let motion = motion(p)?;
+    let opts = crate::covariance_options(p);
+    let g = groups.max(1) as u64;
+    if opts.paths / g < 2 {
+        return Err(RunError::Load(p.in_document(SceneError::InvalidInput {
+            field: "render.paths".into(),
+            reason: format!(
+                "{} paths cannot be shared by {g} renders of at least 2 paths",
+                opts.paths
+            ),
+        })));
+    }
+    let mut renders = Vec::with_capacity(groups.max(1));
+    for r in 0..g {
+        let o = if g == 1 {
+            opts
+        } else {
+            speckle_estimators::CovarianceOptions {
+                paths: opts.paths / g + u64::from(r < opts.paths % g),
+                seed: derive_seed(opts.seed, r),
+                ..opts
+            }
+        };
+        renders.push(render_temporal(p, motion, &o, progress)?);
+    }
+    let n = renders.len() as f64;
+    let first = &renders[0];
+    let size = first.correlation.len();
+    let correlation = (0..size)
+        .map(|i| renders.iter().map(|t| t.correlation[i]).sum::<Complex64>() / n)
+        .collect();
+    let part = |f: fn(&Complex64) -> f64, i: usize| {
+        renders
+            .iter()
+            .map(|t| f(&t.correlation_stderr[i]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+            / n
+    };
+    let stderr = (0..size)
+        .map(|i| Complex64::new(part(|c| c.re, i), part(|c| c.im, i)))
+        .collect();
+    let pooled = if g == 1 {
+        first.clone()
+    } else {
+        Temporal::from_correlation(
+            first.lags.clone(),
+            first.pairs,
+            correlation,
+            stderr,
+            renders.iter().map(|t| t.paths).sum(),
+        )
+    };
+    Ok(Renders { pooled, renders })
 }
 
 /// A spatio-temporal map (Bar et al. 2023, Eqs. 36-37, Fig. 7): the correlation of the first
@@ -251,6 +360,22 @@ impl Tracking {
     pub fn at(&self, c: usize, l: usize) -> (Complex64, Complex64) {
         let i = c * self.lags.len() + l;
         (self.correlation[i], self.correlation_stderr[i])
+    }
+
+    /// The lag number `l0` of the smallest lag in magnitude (the first of equals): the zero lag
+    /// when the lags include 0.
+    pub fn zero_lag(&self) -> usize {
+        (0..self.lags.len())
+            .min_by(|a, b| self.lags[*a].abs().total_cmp(&self.lags[*b].abs()))
+            .unwrap_or(0)
+    }
+
+    /// The three curves on one scale, `|C(t)| / Re C_2(t_l0)` (`3 x L`, as
+    /// [`Self::correlation`]): divided by the `U = 0` curve at the smallest lag
+    /// ([`Self::zero_lag`]), `C_2(0)` when the lags include 0.
+    pub fn normalised(&self) -> Vec<f64> {
+        let c0 = self.at(2, self.zero_lag()).0.re;
+        self.correlation.iter().map(|c| c.norm() / c0).collect()
     }
 }
 
@@ -467,4 +592,350 @@ pub fn tracking(p: &Problem, progress: &dyn Progress) -> Result<Tracking, RunErr
             .fold(0.0, f64::max);
     }
     Ok(out)
+}
+
+/// A reference curve `|g1(t)|` to compare a render with (`speckle g1 --reference`), read from
+/// a CSV file: lines of comma-separated numbers, an optional header line first (a line whose
+/// first field is not a number), `#` comments and blank lines ignored; the **first** column is
+/// the lag (in the scene's time unit), the **last** the normalised `|g1|` (`g1(0) = 1`). The
+/// authors' MCX curve `validation/data/mcx_dcs_validation/g1_mcx.csv` (`t_seconds,
+/// mcx_correlation, g1_normalized`) is one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reference {
+    /// The file it was read from (for messages and sidecars).
+    pub path: std::path::PathBuf,
+    /// The name of its last column (from the header; `"g1"` without one).
+    pub column: String,
+    /// The lags of its rows.
+    pub lags: Vec<f64>,
+    /// `|g1|` at those lags.
+    pub g1: Vec<f64>,
+}
+
+/// The comparison of the first pair's `|g1(t)|` with a [`Reference`] at the scene's lags.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    /// The reference at each lag of `[motion]`.
+    pub reference: Vec<f64>,
+    /// The rendered `|g1(t)| = |C(t)| / Re C(0)` of the pooled renders.
+    pub g1: Vec<f64>,
+    /// Its standard error, the jackknife over the renders (0 at the zero lag, where `|g1| = 1`
+    /// exactly).
+    pub g1_stderr: Vec<f64>,
+    /// `(|g1| - reference) / se` per lag (0 at the zero lag).
+    pub deviation: Vec<f64>,
+}
+
+impl Comparison {
+    /// The lag number of the largest `|deviation|` (the first of equals).
+    pub fn worst(&self) -> usize {
+        (0..self.deviation.len())
+            .reduce(|a, b| {
+                if self.deviation[b].abs() > self.deviation[a].abs() {
+                    b
+                } else {
+                    a
+                }
+            })
+            .unwrap_or(0)
+    }
+
+    /// The mean `|deviation|` over the lags.
+    pub fn mean_abs_deviation(&self) -> f64 {
+        self.deviation.iter().map(|d| d.abs()).sum::<f64>() / self.deviation.len().max(1) as f64
+    }
+}
+
+/// The largest size of a reference file (bytes).
+const MAX_REFERENCE_BYTES: u64 = speckle_scene::safe::MAX_TABLE_BYTES;
+
+impl Reference {
+    /// Reads a reference curve (a regular file of at most 64 MiB; errors name the file, the
+    /// line and what is wrong).
+    pub fn read(path: &std::path::Path) -> Result<Self, RunError> {
+        let shown = speckle_scene::safe::shown_path(path);
+        let text = speckle_scene::safe::read_text("reference", path, &shown, MAX_REFERENCE_BYTES)
+            .map_err(|e| {
+            let SceneError::InvalidInput { reason, .. } = e;
+            RunError::File {
+                path: path.into(),
+                reason,
+            }
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses the text of a reference file (`path` for messages).
+    pub fn parse(text: &str, path: &std::path::Path) -> Result<Self, RunError> {
+        use speckle_scene::safe::{excerpt, strip_bom};
+        let bad = |line: usize, reason: String| RunError::File {
+            path: path.into(),
+            reason: format!("reference: line {line}: {reason}"),
+        };
+        let (mut column, mut width) = (None, None);
+        let (mut lags, mut g1) = (Vec::new(), Vec::new());
+        for (n, line) in strip_bom(text).lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+            let first_row = column.is_none() && lags.is_empty();
+            if first_row && fields[0].parse::<f64>().is_err() {
+                column = Some(fields[fields.len() - 1].to_string());
+                continue;
+            }
+            if fields.len() < 2 {
+                return Err(bad(
+                    n + 1,
+                    format!(
+                        "expected the lag and |g1| separated by commas (got `{}`)",
+                        excerpt(line)
+                    ),
+                ));
+            }
+            if *width.get_or_insert(fields.len()) != fields.len() {
+                return Err(bad(
+                    n + 1,
+                    format!(
+                        "{} columns where the first row has {}",
+                        fields.len(),
+                        width.unwrap_or(0)
+                    ),
+                ));
+            }
+            let number = |f: &str| -> Result<f64, RunError> {
+                match f.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(v),
+                    _ => Err(bad(n + 1, format!("not a finite number: `{}`", excerpt(f)))),
+                }
+            };
+            lags.push(number(fields[0])?);
+            g1.push(number(fields[fields.len() - 1])?);
+        }
+        if lags.is_empty() {
+            return Err(RunError::File {
+                path: path.into(),
+                reason: "reference: no rows of numbers".into(),
+            });
+        }
+        Ok(Reference {
+            path: path.into(),
+            column: column.unwrap_or_else(|| "g1".into()),
+            lags,
+            g1,
+        })
+    }
+
+    /// The row of each lag of `p`'s `[motion]` table, checked before any render: one pair (the
+    /// curve is compared with it), a zero lag (`g1` needs it), a row at every lag (equal within
+    /// `1e-9` of the largest lag) and a normalised reference (`|g1(0)| = 1` within `1e-6`).
+    /// Errors name the field or the file.
+    pub fn rows(&self, p: &Problem) -> Result<Vec<usize>, RunError> {
+        let motion = motion(p)?;
+        let bad = |reason: String| RunError::File {
+            path: self.path.clone(),
+            reason: format!("reference: {reason}"),
+        };
+        if p.pairs() != 1 {
+            return Err(bad(format!(
+                "a reference curve is compared with one pair; the scene has {} (choose one \
+                 with `pairs`)",
+                p.pairs()
+            )));
+        }
+        if !motion.lags.contains(&0.0) {
+            return Err(bad(
+                "the scene's motion.lags have no 0, so there is no g1 to compare".into(),
+            ));
+        }
+        let scale = motion
+            .lags
+            .iter()
+            .chain(&self.lags)
+            .fold(0.0f64, |m, t| m.max(t.abs()));
+        let rows = motion
+            .lags
+            .iter()
+            .enumerate()
+            .map(|(l, t)| {
+                self.lags
+                    .iter()
+                    .position(|r| (r - t).abs() <= 1e-9 * scale)
+                    .ok_or_else(|| {
+                        bad(format!(
+                            "no row at motion.lags[{l}] = {t} (the reference has {} rows from \
+                             {} to {})",
+                            self.lags.len(),
+                            self.lags[0],
+                            self.lags[self.lags.len() - 1]
+                        ))
+                    })
+            })
+            .collect::<Result<Vec<usize>, _>>()?;
+        let zero = rows[motion.lags.iter().position(|t| *t == 0.0).unwrap_or(0)];
+        if (self.g1[zero] - 1.0).abs() > 1e-6 {
+            return Err(bad(format!(
+                "its last column ({}) is {} at lag 0: it must be the normalised |g1| (1 at \
+                 lag 0)",
+                speckle_scene::safe::excerpt(&self.column),
+                self.g1[zero]
+            )));
+        }
+        Ok(rows)
+    }
+
+    /// Compares the renders `r` of `p` with this curve ([`Reference::rows`] says what is
+    /// checked): at least 2 renders (an error naming `groups`), `C(0)` of every render and of
+    /// their pool positive.
+    pub fn compare(&self, p: &Problem, r: &Renders) -> Result<Comparison, RunError> {
+        let rows = self.rows(p)?;
+        let bad = |reason: String| RunError::File {
+            path: self.path.clone(),
+            reason: format!("reference: {reason}"),
+        };
+        let groups = r.renders.len();
+        if groups < 2 {
+            return Err(RunError::Load(p.in_document(SceneError::InvalidInput {
+                field: "groups".into(),
+                reason: format!(
+                    "the standard error of |g1| needs at least 2 independent renders (got \
+                     {groups})"
+                ),
+            })));
+        }
+        let t = &r.pooled;
+        let nl = t.lags.len();
+        let z = t.lags.iter().position(|x| *x == 0.0).unwrap_or(0);
+        // Sums over the renders (all of them, or all but one), pair 0.
+        let sum = |skip: Option<usize>| -> Vec<Complex64> {
+            (0..nl)
+                .map(|l| {
+                    (0..groups)
+                        .filter(|g| Some(*g) != skip)
+                        .map(|g| r.renders[g].correlation[l])
+                        .sum()
+                })
+                .collect()
+        };
+        for skip in std::iter::once(None).chain((0..groups).map(Some)) {
+            let c0 = sum(skip)[z].re;
+            if c0.is_nan() || c0 <= 0.0 {
+                return Err(bad(format!("the render's C(0) = {c0} is not positive")));
+            }
+        }
+        let (g1, se) = speckle_stats::jackknife::jackknife(groups, |skip| {
+            let c = sum(skip);
+            c.iter().map(|v| v.norm() / c[z].re).collect()
+        });
+        let reference: Vec<f64> = rows.iter().map(|&row| self.g1[row]).collect();
+        let deviation = (0..nl)
+            .map(|l| {
+                let d = g1[l] - reference[l];
+                // At the zero lag both are 1 (the reference within 1e-6, checked by `rows`).
+                if l == z || d == 0.0 { 0.0 } else { d / se[l] }
+            })
+            .collect();
+        Ok(Comparison {
+            reference,
+            g1,
+            g1_stderr: se,
+            deviation,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speckle_scene::{Overrides, load_str};
+    use speckle_stats::NoProgress;
+    use std::path::Path;
+
+    const SCENE: &str = r#"
+wavelength = 1.0
+[medium]
+size = [12.0, 12.0, 4.0]
+mean_free_path = 2.0
+[[sources]]
+type = "plane"
+direction = [0.0, 0.0, 1.0]
+[[sensors]]
+type = "far"
+direction = [0.0, 0.0, 1.0]
+[motion]
+diffusion = 0.002
+lags = [0.0, 1.0, 4.0]
+[render]
+paths = 3001
+seed = 4
+"#;
+
+    fn problem() -> Problem {
+        load_str(SCENE, "<test>", Path::new("."), "t", &Overrides::default()).unwrap()
+    }
+
+    /// One render is bitwise [`temporal`]; several share the paths and pool to their mean,
+    /// with `g1` from the pooled correlation.
+    #[test]
+    fn renders_pool_independent_renders() {
+        let p = problem();
+        let one = temporal_renders(&p, 1, &NoProgress).unwrap();
+        assert_eq!(one.pooled, temporal(&p, &NoProgress).unwrap());
+        let r = temporal_renders(&p, 3, &NoProgress).unwrap();
+        assert_eq!(r.renders.len(), 3);
+        let paths: Vec<u64> = r.renders.iter().map(|t| t.paths).collect();
+        assert_eq!((paths, r.pooled.paths), (vec![1001, 1000, 1000], 3001));
+        assert_ne!(r.renders[0].correlation, r.renders[1].correlation);
+        for l in 0..3 {
+            let mean: Complex64 = r
+                .renders
+                .iter()
+                .map(|t| t.correlation[l])
+                .sum::<Complex64>()
+                / 3.0;
+            assert!((r.pooled.correlation[l] - mean).norm() <= 1e-15 * mean.norm());
+            let se = r
+                .renders
+                .iter()
+                .map(|t| t.correlation_stderr[l].re.powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / 3.0;
+            assert!((r.pooled.correlation_stderr[l].re - se).abs() <= 1e-15 * se);
+        }
+        let g1 = r.pooled.g1.as_ref().unwrap();
+        assert_eq!(g1[0], Complex64::new(1.0, 0.0));
+        assert_eq!(g1[2], r.pooled.correlation[2] / r.pooled.correlation[0].re);
+        // The comparison: |g1| of the pool, zero deviation at lag 0, at least 2 renders.
+        let reference = Reference::parse("t,g1\n0,1\n1,0.5\n4,0.25\n", Path::new("r.csv")).unwrap();
+        let c = reference.compare(&p, &r).unwrap();
+        assert_eq!(c.g1[0], 1.0);
+        assert_eq!((c.g1_stderr[0], c.deviation[0]), (0.0, 0.0));
+        assert!((c.g1[2] - g1[2].norm()).abs() <= 1e-15);
+        assert!(c.g1_stderr[1] > 0.0 && c.g1_stderr[2] > 0.0);
+        let e = reference.compare(&p, &one).unwrap_err();
+        assert!(e.to_string().contains("groups"), "{e}");
+    }
+
+    #[test]
+    fn references_read_the_first_and_last_columns() {
+        let text = "\u{feff}# MCX\n\ntime,raw,g1_normalized\n0.0, 0.1, 1.0\n# mid\n1e-6,0.09,0.9\n";
+        let r = Reference::parse(text, Path::new("r.csv")).unwrap();
+        assert_eq!(r.column, "g1_normalized");
+        assert_eq!((r.lags, r.g1), (vec![0.0, 1e-6], vec![1.0, 0.9]));
+        // Without a header.
+        let r = Reference::parse("0,1\n2,0.5\n", Path::new("r.csv")).unwrap();
+        assert_eq!((r.column.as_str(), r.lags.len()), ("g1", 2));
+        for (text, wanted) in [
+            ("t,g1\n0,1\n1,nan\n", "line 3: not a finite number"),
+            ("t,g1\n0,1\n1\n", "line 3: expected the lag"),
+            ("t,g1\n0,1\n1,2,3\n", "line 3: 3 columns"),
+            ("# nothing\n", "no rows"),
+        ] {
+            let e = Reference::parse(text, Path::new("r.csv")).unwrap_err();
+            assert!(e.to_string().contains(wanted), "{text}: {e}");
+            assert!(e.to_string().starts_with("r.csv: reference"), "{e}");
+        }
+    }
 }

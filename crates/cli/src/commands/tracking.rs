@@ -29,8 +29,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         temporal::tracking(&p, pr)
     })?;
     let n = &p.name;
-    let c0 = t.at(2, zero_lag(&t)).0.re;
-    let normalised: Vec<f64> = t.correlation.iter().map(|c| c.norm() / c0).collect();
+    let c0 = t.at(2, t.zero_lag()).0.re;
+    let normalised = t.normalised();
     let mut files = json!({
         "shape": [3, nl],
         "layout": "(3, L), curve-major: row 0 no tracking, row 1 tracking, row 2 U = 0; \
@@ -40,8 +40,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                     C[(i, v), (i + tU, v + tU)](t) in the drifting medium (Eq. 39), row 2 \
                     C[(i, v), (i, v)](t) with every drift set to 0 (same diffusion); \
                     tracking_correlation_stderr: their standard errors (real part: of Re, \
-                    imaginary: of Im); tracking_normalised (float64): |C(t)| / C_2(0), the \
-                    U = 0 curve's zero lag (NaN without a zero lag)",
+                    imaginary: of Im); tracking_normalised (float64): |C(t)| / Re C_2(t0), the \
+                    U = 0 curve at the smallest lag t0 (0 when the lags include it)",
     });
     let arrays = [
         ("tracking_correlation", encode_c16(&[3, nl], &t.correlation)),
@@ -77,13 +77,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         threads(),
     );
     finish(staged)
-}
-
-/// The index of the first zero lag, or of the smallest lag in magnitude.
-fn zero_lag(t: &Tracking) -> usize {
-    (0..t.lags.len())
-        .min_by(|a, b| t.lags[*a].abs().total_cmp(&t.lags[*b].abs()))
-        .unwrap_or(0)
 }
 
 /// `|C(t)| / C_2(t0)` of the three curves (`t0` the smallest lag), with error bars of one

@@ -66,6 +66,7 @@ __all__ = [
     "Shard",
     "ShardError",
     "SingleResult",
+    "TrackingResult",
     "WaveResult",
     "covariance",
     "field_sequence",
@@ -79,6 +80,7 @@ __all__ = [
     "save_shard",
     "single",
     "spatiotemporal_map",
+    "tracking",
     "wave",
 ]
 
@@ -429,6 +431,44 @@ class MapResult(Result):
 
 
 @dataclass(frozen=True)
+class TrackingResult(Result):
+    """Tracking (``speckle tracking``, :func:`tracking`; Bar et al. 2023, Eqs. 38-39, Fig. 9):
+    the temporal correlation of the scene's point source ``i`` and point sensor ``v`` in a
+    medium drifting with ``U``, three ways, at the lags of ``[motion]``. Arrays are ``(3, L)``,
+    one row per curve in the order of :attr:`curves`:
+
+    0. no tracking (Eq. 38): ``C[(i, v), (i, v)](t)`` in the drifting medium (bitwise
+       :func:`g1`'s ``correlation`` of the scene);
+    1. tracking (Eq. 39): ``C[(i, v), (i + tU, v + tU)](t)``, source and sensor shifted with
+       the flow over each lag (each lag its own render, of its own seed);
+    2. ``U = 0``: ``C[(i, v), (i, v)](t)`` in the same medium with the drift removed (same
+       diffusion; a seed of its own).
+
+    Row 1 equals row 2 within their errors where the medium is wide against ``|tU|``; row 0
+    also decays with the drift."""
+
+    tracking_correlation: np.ndarray
+    """``(3, L)`` complex128: the three curves ``C(t)``."""
+    tracking_correlation_stderr: np.ndarray
+    """Their standard errors (real part: of the real part; imaginary: of the imaginary part)."""
+    tracking_normalised: np.ndarray
+    """``(3, L)`` float64: ``|C(t)| / Re C_2(t0)``, on the scale of the ``U = 0`` curve at the
+    smallest lag ``t0`` (0 when the lags include it)."""
+    tracking_lags: np.ndarray
+    """``(L,)`` float64, as in ``[motion]``."""
+    curves: Tuple[str, str, str]
+    """The rows' names: ``("no tracking", "tracking", "U = 0")``."""
+    drift: Tuple[float, float, float]
+    """The drift ``U`` (one for every material)."""
+    max_deviation: Tuple[float, float, float]
+    """Per row, the largest deviation from the ``U = 0`` row over the lags and the real and
+    imaginary parts, in combined standard errors ``|a - b| / sqrt(se_a^2 + se_b^2)`` (the
+    renders are independent); the last is 0."""
+    paths: int
+    """Sampled paths in all ``L + 2`` renders."""
+
+
+@dataclass(frozen=True)
 class FieldSequenceResult(Result):
     """Field realizations of moving scatterers at the times of ``[motion]`` (``speckle
     field-sequence``, Bar et al. 2023, Sec. 5): spatio-temporal transmission matrices whose
@@ -450,6 +490,7 @@ _RESULTS = {
     "field_sequence": FieldSequenceResult,
     "g1": G1Result,
     "map": MapResult,
+    "tracking": TrackingResult,
     "covariance": CovarianceResult,
     "intensity": IntensityResult,
     "fields": FieldsResult,
@@ -662,6 +703,30 @@ def spatiotemporal_map(
     """
     s = _load_with(scene, dict(paths=paths, seed=seed))
     return _result(s, _speckle.map(s._p, threads, force))  # type: ignore[return-value]
+
+
+def tracking(
+    scene: SceneLike,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> TrackingResult:
+    """Renders tracking (Bar et al. 2023, Eqs. 38-39, Fig. 9) for the scene's one point source
+    and one point sensor in a medium whose materials all drift with one ``U != 0``: the
+    temporal correlation without tracking, with source and sensor shifted by ``tU`` over each
+    lag, and with the drift removed (same diffusion), at the lags of ``[motion]``.
+    ``paths`` sub-paths (default: ``render.paths``) for each of the ``L + 2`` renders. The
+    arrays are bitwise those of ``speckle tracking``. A scene that cannot be tracked raises
+    :class:`SceneError` naming the field (``motion.drift``, ``sources``, ``sensors[0].type``,
+    ...).
+
+    >>> r = speckle.tracking(scene)                 # doctest: +SKIP
+    >>> r.tracking_normalised[1]                    # the tracked curve, |C(t)| / C_(U=0)(0)
+    """
+    s = _load_with(scene, dict(paths=paths, seed=seed))
+    return _result(s, _speckle.tracking(s._p, threads, force))  # type: ignore[return-value]
 
 
 def mean(scene: SceneLike) -> MeanResult:

@@ -109,6 +109,9 @@ def g1(
 def map(
     problem: Problem, threads: Optional[int] = None, force: bool = False
 ) -> Dict[str, Any]: ...
+def tracking(
+    problem: Problem, threads: Optional[int] = None, force: bool = False
+) -> Dict[str, Any]: ...
 def field_sequence(
     problem: Problem, threads: Optional[int] = None, force: bool = False
 ) -> Dict[str, Any]: ...
