@@ -1,6 +1,7 @@
 //! End to end: the path-traced commands (covariance, intensity, fields) render scenes with
 //! Gaussian-beam sources and sensors (near-field connections, Bar et al. 2020), and `mean` and
-//! the means written beside them are the closed-form near-field means; `g1` exits with code 2.
+//! the means written beside them are the closed-form near-field means; so does `g1` with
+//! moving scatterers.
 
 mod common;
 use common::*;
@@ -44,8 +45,25 @@ fn covariance_and_intensity_render_gaussian_beams() {
             .join("gaussian_beams_isotropic.mean.npy"),
     );
     assert_eq!(alone, mean);
-    let o = speckle(dir.path(), &["g1", s, "-q"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // Moving scatterers: g1 renders the beams, its zero lag bitwise the intensity, and the
+    // correlation decays.
+    let motion = "\n[motion]\ndiffusion = 0.01\nlags = [0.0, 1.0, 4.0]\n";
+    let moving = write(dir.path(), "gm.toml", &format!("{SCENE}{motion}"));
+    let o = speckle(
+        dir.path(),
+        &["g1", moving.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c = npy_f64(&out.join("gaussian_beams_isotropic.correlation.npy"));
+    for j in 0..2 {
+        let at = |l: usize| (c[2 * (3 * j + l)], c[2 * (3 * j + l) + 1]);
+        assert_eq!(at(0).0.to_bits(), intensity[j].to_bits(), "pair {j}");
+        let norm = |(re, im): (f64, f64)| (re * re + im * im).sqrt();
+        assert!(
+            norm(at(2)) < norm(at(1)) && norm(at(1)) < at(0).0,
+            "pair {j}: {c:?}"
+        );
+    }
 }
 
 #[test]

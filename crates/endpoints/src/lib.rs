@@ -23,9 +23,9 @@
 //!   Its connection is not a leg times an amplitude: [`Endpoints::connect`] gives it its
 //!   weighted aperture at the medium point, and [`Endpoints::scatter`] and
 //!   [`Endpoints::single`] integrate it in closed form (the near-field covariance of Bar et al.
-//!   2020, Eqs. 13-18). The covariance and field estimators accept it ([`check_near_field`]),
-//!   and its pairs have a closed-form mean ([`mean_field`]); the temporal-correlation estimator
-//!   and field sequences refuse it for now ([`check_monte_carlo`]).
+//!   2020, Eqs. 13-18). Every Monte Carlo estimator accepts it when the
+//!   scattering amplitudes are vMF lobes ([`check_near_field`]), and its pairs have a
+//!   closed-form mean ([`mean_field`]).
 //!
 //! A sensor is written in *source form*, as the source of the field it reads by reciprocity
 //! (the far-field sensor `v` is the plane wave along `-v`; the point sensor at `q` the point
@@ -93,9 +93,8 @@ pub enum Source {
     },
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves
     /// `exp(i k w . (x - f))` weighted by the unit-integral vMF mask about its axis (the
-    /// propagation direction through the focus `f`). The exact wave solver and the covariance
-    /// and field estimators support it ([`check_near_field`]); the other Monte Carlo estimators
-    /// refuse it ([`check_monte_carlo`]).
+    /// propagation direction through the focus `f`). The exact wave solver and every Monte
+    /// Carlo estimator support it ([`check_near_field`]).
     GaussianBeam(GaussianBeam),
 }
 
@@ -118,8 +117,7 @@ pub enum Sensor {
     /// direction the light travels from the medium into the sensor. It reads
     /// `int m(w) e^(i k w . f) A(w) dw` of a field of outgoing far-field amplitude `A` (Eqs. 9-10);
     /// its source form is the beam with the axis reversed. Supported by the exact wave solver and
-    /// the covariance and field estimators ([`check_near_field`]); refused by the other Monte Carlo
-    /// estimators for now ([`check_monte_carlo`]).
+    /// every Monte Carlo estimator ([`check_near_field`]).
     GaussianBeam(GaussianBeam),
 }
 
@@ -216,7 +214,8 @@ impl Source {
     ///
     /// # Panics
     ///
-    /// For a Gaussian beam, which has no single leg (callers check [`check_monte_carlo`]).
+    /// For a Gaussian beam, which has no single leg (its connections are
+    /// [`Endpoints::scatter`]'s aperture integrals).
     #[inline]
     pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
         self.kind().leg(m, k, x, Side::Source)
@@ -279,7 +278,8 @@ impl Sensor {
     ///
     /// # Panics
     ///
-    /// For a Gaussian beam, which has no single leg (callers check [`check_monte_carlo`]).
+    /// For a Gaussian beam, which has no single leg (its connections are
+    /// [`Endpoints::scatter`]'s aperture integrals).
     #[inline]
     pub fn leg<M: Medium>(&self, m: &M, k: f64, x: DVec3) -> Leg {
         self.kind().leg(m, k, x, Side::Sensor)
@@ -293,40 +293,11 @@ impl Kind {
         match *self {
             Self::Plane(d) => plane::leg(m, k, d, x, side),
             Self::Point(p) => point::leg(m, k, p, x, side),
-            Self::Gaussian(_) => panic!("{}", GAUSSIAN_MONTE_CARLO),
+            Self::Gaussian(_) => {
+                panic!("a Gaussian beam has no single leg: its connections integrate its aperture")
+            }
         }
     }
-}
-
-/// Why the temporal-correlation estimator and field sequences refuse Gaussian beams (for now).
-const GAUSSIAN_MONTE_CARLO: &str = "gaussian_beam endpoints are supported by the exact wave \
-    solver, the covariance, intensity and field estimators and the mean only: near-field \
-    temporal correlations and field sequences of moving scatterers are not implemented yet";
-
-/// Checks that the temporal-correlation estimator and field sequences can connect every
-/// endpoint: an error naming `sources[j]` or `sensors[j]` for a Gaussian beam, which only the
-/// covariance and field estimators ([`check_near_field`]), the mean and the exact wave solver
-/// support.
-pub fn check_monte_carlo(sources: &[Source], sensors: &[Sensor]) -> Result<(), EndpointError> {
-    if let Some(j) = sources
-        .iter()
-        .position(|s| matches!(s, Source::GaussianBeam(_)))
-    {
-        return Err(check::invalid(
-            format!("sources[{j}]"),
-            GAUSSIAN_MONTE_CARLO,
-        ));
-    }
-    if let Some(j) = sensors
-        .iter()
-        .position(|s| matches!(s, Sensor::GaussianBeam(_)))
-    {
-        return Err(check::invalid(
-            format!("sensors[{j}]"),
-            GAUSSIAN_MONTE_CARLO,
-        ));
-    }
-    Ok(())
 }
 
 /// Checks that the covariance estimators can connect every endpoint with the scattering

@@ -24,6 +24,19 @@
 //! shifting the endpoints with the flow (`i + tU`, `v + tU`) reproduces the correlation of a
 //! medium without drift path by path (up to attenuation and boundary effects).
 //!
+//! **Focused Gaussian beams** (Bar et al. 2020) are superpositions of plane waves, so a beam's
+//! end vertex has no single leg direction for the averaged transfer; the Gaussian average over
+//! its displacement couples the directions of both copies' apertures (and a beam's spread of
+//! directions decorrelates a forward-scattering end vertex that a single direction would
+//! leave intact). With beams in the scene, the end vertices' Brownian displacements are
+//! therefore *sampled* instead: per path, a standard normal vector `z_1` for the first vertex
+//! and `z_b` for each later one (from a stream of their own, `BROWNIAN_KEY`), and at lag `t`
+//! copy 1 connects from `x - Delta/2`, copy 2 from `x + Delta/2`, `Delta = t U + sqrt(2 D |t|) z`,
+//! with the exact connections there (as drift is), times the shared segments' first-order
+//! phase `exp(i k (w_1 . Delta_1 - w_in . Delta_b))` (Brownian parts only). Its expectation
+//! over `z` is the exact Gaussian average at the end vertices; interior vertices keep the
+//! closed form. Lags are then connected one by one (no powers).
+//!
 //! The medium's box stays where it is while its scatterers flow through it: a path whose
 //! vertex `x_m` would lie outside the box at either time (`x_m -/+ t U(x_m) / 2`) goes through
 //! a scatterer that is not in the medium then, and contributes nothing at that lag (the exact
@@ -52,7 +65,13 @@ use speckle_medium::Medium;
 use speckle_motion::{MotionFactor, MotionModel, MotionState};
 use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
+use speckle_stats::rng::derive_seed;
 use speckle_stats::{BatchSum, CMatrix, Layout, PartGroups, Poll, Progress, batch_moments_grouped};
+
+/// The index given to [`derive_seed`] for the key of the end vertices' sampled Brownian
+/// displacements (scenes with Gaussian beams): path `n` draws them from stream `n` of
+/// `derive_seed(seed, BROWNIAN_KEY)`, so its path is the static one.
+pub const BROWNIAN_KEY: u64 = 0x0042_726f_776e; // "Brown"
 
 /// Which entries `C[j, k](t)` of the pair list a correlation render estimates.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -118,7 +137,16 @@ struct Plan {
     entries: Vec<(usize, usize)>,
     local: Vec<Entry>,
     mode: Mode,
-    drift: bool,
+    /// Whether the end vertices' Brownian displacements are sampled (scenes with Gaussian
+    /// beams).
+    sampled: bool,
+    /// Whether the copies of every lag connect from displaced points (drift, or sampled
+    /// displacements): then each lag has its own ends.
+    displaced: bool,
+    /// The key of the sampled displacements' streams.
+    key: u64,
+    /// Flatland (displacements in the plane).
+    flat: bool,
     /// At most four (forward/reversed) term combinations per entry.
     combos: usize,
     k: f64,
@@ -147,6 +175,11 @@ struct Scratch<'s, M, P> {
     buf: Vec<Complex64>,
     /// The batch's sums of the lags taken by [`Powers`]: single and multiple scattering.
     table: Option<[PowerSums; 2]>,
+    /// The sampled displacements' stream of the current path, and the standard normal vectors
+    /// of its first and current vertices.
+    brown: PathRng,
+    z1: DVec3,
+    zb: DVec3,
     /// Per lag: whether every vertex of the path so far lies in the medium at both times
     /// (displaced by `-/+ t U / 2`); a path through a scatterer that is outside the medium at
     /// either time contributes nothing at that lag.
@@ -172,6 +205,25 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         sign * self.plan.lags[l] * u
     }
 
+    /// The sampled Brownian displacement `sqrt(2 D |t|) z` at lag `l` of a vertex with
+    /// diffusion coefficient `d` and standard normal vector `z` (zero unless sampled).
+    #[inline]
+    fn brownian(&self, l: usize, d: f64, z: DVec3) -> DVec3 {
+        if self.plan.sampled {
+            (2.0 * d * self.plan.lags[l].abs()).sqrt() * z
+        } else {
+            DVec3::ZERO
+        }
+    }
+
+    /// A standard normal vector from the path's displacement stream (in the plane in
+    /// flatland).
+    fn normal(&mut self) -> DVec3 {
+        let (a, b) = crate::field_sequences::normal_pair(&mut self.s.brown);
+        let (c, _) = crate::field_sequences::normal_pair(&mut self.s.brown);
+        DVec3::new(a, b, if self.plan.flat { 0.0 } else { c })
+    }
+
     /// Whether the vertex `x` moving with drift `u` lies in the medium at both times of lag
     /// `l`.
     #[inline]
@@ -184,7 +236,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     /// nothing drifts (then both copies of every lag connect where the connector does).
     #[inline]
     fn connector_legs(&self) -> bool {
-        !self.plan.drift || self.plan.any_zero
+        !self.plan.displaced || self.plan.any_zero
     }
 
     /// Accumulates a zero lag as the static covariance does: the connector's pair values.
@@ -272,11 +324,22 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         let d1 = self.s.state.first.diffusion;
         let n = self.plan.combos;
         let s = &mut *self.s;
-        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.drift, l);
+        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.displaced, l);
+        let (sources, sensors) = (s.conn.sources(), s.conn.sensors());
+        let sampled = self.plan.sampled;
         for (e, en) in self.plan.local.iter().enumerate() {
             let f = |ends: &Ends, src: usize, sen: usize| {
-                let (ds, dv) = (ends.in1.dir(src), ends.out1.dir(sen));
-                let amp = ends.in1.amp(src) * ends.out1.amp(sen) * phase.amplitude_between(ds, dv);
+                let (in1, out1) = (&ends.in1, &ends.out1);
+                if sampled {
+                    // Aperture integrals (Eqs. 15-18) at the sampled displacements: no
+                    // transfer.
+                    return (
+                        sources.single(in1, src, sensors, out1, sen, phase),
+                        DVec3::ZERO,
+                    );
+                }
+                let (ds, dv) = (in1.dir(src), out1.dir(sen));
+                let amp = in1.amp(src) * out1.amp(sen) * phase.amplitude_between(ds, dv);
                 (
                     amp,
                     speckle_motion::source_gradient(ds) + speckle_motion::sensor_gradient(dv),
@@ -286,7 +349,11 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             let (f2, g2) = f(b, en.s2, en.v2);
             let q = speckle_motion::single_transfer(g1, g2);
             s.prod[e * n] = f1 * f2.conj();
-            s.expo[e * n] = d1 * q.length_squared();
+            s.expo[e * n] = if sampled {
+                0.0
+            } else {
+                d1 * q.length_squared()
+            };
             for i in e * n + 1..(e + 1) * n {
                 s.prod[i] = Complex64::ZERO;
                 s.expo[i] = 0.0;
@@ -302,7 +369,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         let reversed = self.coherence == Coherence::ForwardAndReversed;
         let n = self.plan.combos;
         let s = &mut *self.s;
-        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.drift, l);
+        let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.displaced, l);
         // Term t of a copy: amplitude, leg gradient at x1, leg gradient at x_b.
         let term = |ends: &Ends, src: usize, sen: usize, rev: bool| {
             if rev {
@@ -320,6 +387,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             }
         };
         let terms = if reversed { 2 } else { 1 };
+        let sampled = self.plan.sampled;
         for (e, en) in self.plan.local.iter().enumerate() {
             // The terms of each copy, once (the copies of a diagonal entry share them when
             // nothing drifts).
@@ -345,10 +413,15 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             let mut i = e * n;
             for &(p1, g11, gb1) in &t1[..terms] {
                 for &(p2, g12, gb2) in &t2[..terms] {
-                    let q1 = speckle_motion::first_transfer(w1, g11, g12);
-                    let qb = speckle_motion::last_transfer(w_in, gb1, gb2);
                     s.prod[i] = p1 * p2.conj();
-                    s.expo[i] = d1 * q1.length_squared() + db * qb.length_squared();
+                    s.expo[i] = if sampled {
+                        // The end vertices' displacements are sampled.
+                        0.0
+                    } else {
+                        let q1 = speckle_motion::first_transfer(w1, g11, g12);
+                        let qb = speckle_motion::last_transfer(w_in, gb1, gb2);
+                        d1 * q1.length_squared() + db * qb.length_squared()
+                    };
                     i += 1;
                 }
             }
@@ -366,12 +439,17 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         if self.plan.any_zero {
             self.s.conn.fill_first();
         }
-        if self.plan.drift {
-            let u = self.s.state.first.drift;
+        if self.plan.sampled {
+            self.s.z1 = self.normal();
+        }
+        if self.plan.displaced {
+            let (u, d) = (self.s.state.first.drift, self.s.state.first.diffusion);
             for l in 0..self.plan.lags.len() {
                 self.s.inside[l] = self.stays(l, x1, u);
+                let brownian = self.brownian(l, d, self.s.z1);
                 for side in 0..2 {
-                    let x = x1 + self.shift(l, side, u);
+                    let sign = if side == 0 { -0.5 } else { 0.5 };
+                    let x = x1 + self.shift(l, side, u) + sign * brownian;
                     let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
                     self.s.ends[2 * l + side].start(src, sen, x);
                 }
@@ -398,7 +476,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if !self.s.inside[l] {
                 continue;
             }
-            if self.plan.drift || !done {
+            if self.plan.displaced || !done {
                 self.single_terms(l);
                 done = true;
             }
@@ -413,7 +491,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if self.connector_legs() {
                 self.s.conn.second(v.w12);
             }
-            if self.plan.drift {
+            if self.plan.displaced {
                 let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
                 for e in &mut self.s.ends {
                     e.second(src, sen, phase1, v.w12);
@@ -428,12 +506,17 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             self.s.conn.fill_vertex(self.coherence);
         }
         let w_in = v.w_in;
-        if self.plan.drift {
-            let u = self.s.state.here.drift;
+        if self.plan.sampled {
+            self.s.zb = self.normal();
+        }
+        if self.plan.displaced {
+            let (u, d) = (self.s.state.here.drift, self.s.state.here.diffusion);
             for l in 0..self.plan.lags.len() {
                 self.s.inside[l] = self.s.inside[l] && self.stays(l, v.x, u);
+                let brownian = self.brownian(l, d, self.s.zb);
                 for side in 0..2 {
-                    let x = v.x + self.shift(l, side, u);
+                    let sign = if side == 0 { -0.5 } else { 0.5 };
+                    let x = v.x + self.shift(l, side, u) + sign * brownian;
                     let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
                     self.s.ends[2 * l + side].at(src, sen, phase, x, w_in, self.coherence);
                 }
@@ -463,11 +546,18 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if !self.s.inside[l] {
                 continue;
             }
-            if self.plan.drift || !done {
+            if self.plan.displaced || !done {
                 self.vertex_terms(l, w_in);
                 done = true;
             }
-            let w = self.s.state.interior(k, self.plan.lags[l]) * weight;
+            let mut w = self.s.state.interior(k, self.plan.lags[l]) * weight;
+            if self.plan.sampled {
+                // The shared first and last segments' change with the sampled displacements.
+                let d1 = self.brownian(l, self.s.state.first.diffusion, self.s.z1);
+                let db = self.brownian(l, self.s.state.here.diffusion, self.s.zb);
+                let w1 = self.s.state.w1;
+                w *= Complex64::from_polar(1.0, k * (w1.dot(d1) - w_in.dot(db)));
+            }
             self.push_lag(2 * l + 1, l, w);
         }
     }
@@ -526,7 +616,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             ),
         });
     }
-    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
+    speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     speckle_motion::check_lags("lags", lags).map_err(motion_error)?;
     let model = model
         .clone()
@@ -579,6 +669,14 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
     };
     let e_len: usize = list.len();
+    let beams = scene
+        .sources()
+        .iter()
+        .any(|s| matches!(s, speckle_endpoints::Source::GaussianBeam(_)))
+        || scene
+            .sensors()
+            .iter()
+            .any(|s| matches!(s, speckle_endpoints::Sensor::GaussianBeam(_)));
     let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
     let tracer = scene.tracer_with(
         options.sampling,
@@ -602,13 +700,16 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         entries: list,
         local,
         mode,
-        drift: model.has_drift(),
+        sampled: beams,
+        displaced: model.has_drift() || beams,
+        key: derive_seed(options.seed, BROWNIAN_KEY),
+        flat: scene.medium().dimension() == speckle_medium::Dimension::Two,
         combos: match options.coherence {
             Coherence::ForwardAndReversed => 4,
             Coherence::ForwardOnly => 1,
         },
         k: scene.wavenumber(),
-        powers: if model.has_drift() {
+        powers: if model.has_drift() || beams {
             None
         } else {
             Powers::of(lags)
@@ -626,7 +727,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             [part, part]
         })
         .collect();
-    let sets = if plan.drift { 2 * lags.len() } else { 0 };
+    let sets = if plan.displaced { 2 * lags.len() } else { 0 };
     let init = || {
         let conn = Connector::new(scene);
         let ends = (0..sets)
@@ -644,6 +745,9 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
                 .as_ref()
                 .map(|p| [PowerSums::new(p, e_len), PowerSums::new(p, e_len)]),
             inside: vec![true; lags.len()],
+            brown: PathRng::new(plan.key, 0),
+            z1: DVec3::ZERO,
+            zb: DVec3::ZERO,
         }
     };
     let path = |s: &mut Scratch<M, P>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {
@@ -657,6 +761,9 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             type1: 0,
             poll,
         };
+        if plan.sampled {
+            sink.s.brown = PathRng::new(plan.key, n);
+        }
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
     let groups = PartGroups { parts, group: 2 };

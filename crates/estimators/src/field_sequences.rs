@@ -177,7 +177,7 @@ pub(crate) struct Trajectory<'f> {
 
 /// A standard normal variate (Box-Muller on two uniforms).
 #[inline]
-fn normal_pair(rng: &mut PathRng) -> (f64, f64) {
+pub(crate) fn normal_pair(rng: &mut PathRng) -> (f64, f64) {
     let r = (-2.0 * (1.0 - rng.next_f64()).ln()).sqrt();
     let (s, c) = (TAU * rng.next_f64()).sin_cos();
     (r * c, r * s)
@@ -324,9 +324,7 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
     progress: &dyn Progress,
 ) -> Result<FieldSequence, EstimatorError> {
     let invalid = |field: String, reason: String| EstimatorError::InvalidInput { field, reason };
-    // Static fields take Gaussian beams; sequences of moving scatterers do not yet (their
-    // reference, the spatio-temporal covariance, refuses them).
-    speckle_endpoints::check_monte_carlo(scene.sources(), scene.sensors())?;
+    speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     if times.is_empty() {
         return Err(invalid("times".into(), "needs at least one time".into()));
     }

@@ -398,18 +398,12 @@ impl Problem {
     /// ([`guard`]) decides whether to go ahead.
     pub fn estimate(&self, command: Command, threads: usize) -> Result<Estimate, SceneError> {
         // Every command here is a Monte Carlo render (or the mean field): refuse what the
-        // estimators would refuse, naming the endpoint. The covariance and field estimators
-        // connect Gaussian beams (near field); `g1` does not yet.
+        // estimators would refuse, naming the endpoint. They all connect Gaussian beams (near
+        // field) whose amplitudes are vMF lobes; the mean has its own closed form.
         let (sources, sensors) = (self.scene.sources(), self.scene.sensors());
         match command {
-            Command::Covariance | Command::Intensity | Command::Single | Command::Fields => {
-                speckle_endpoints::check_near_field(sources, sensors, self.scene.phases())
-            }
-            // The mean has the near-field closed form; `g1` does not take beams yet.
             Command::Mean => Ok(()),
-            Command::G1 | Command::Tracking => {
-                speckle_endpoints::check_monte_carlo(sources, sensors)
-            }
+            _ => speckle_endpoints::check_near_field(sources, sensors, self.scene.phases()),
         }
         .map_err(|e| {
             let speckle_endpoints::EndpointError::InvalidInput { field, reason } = e;
