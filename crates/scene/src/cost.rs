@@ -177,7 +177,8 @@ pub fn covariance_seconds(paths: f64, vertices: f64, legs: f64, pairs: f64) -> f
 
 /// Bytes and rough seconds per vertex of a correlation render of `j` entries at `lags` lags
 /// with `legs` endpoints: per lag, three estimates of every entry and the batches in flight;
-/// with drift both copies of every lag connect to every endpoint at both end vertices.
+/// with drift (or Gaussian beams) both copies of every lag connect to every endpoint at both end
+/// vertices.
 fn g1_cost(j: f64, lags: f64, drift: bool, legs: f64, threads: f64) -> (f64, f64) {
     let bytes = 16.0 * j * lags * (8.0 + 4.0 * threads);
     let connects = if drift { 1.0 + 2.0 * lags } else { 2.0 };
@@ -451,11 +452,23 @@ impl Problem {
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::G1 => {
+                // Drift, and Gaussian beams (whose end vertices' displacements are sampled),
+                // connect both copies of every lag.
+                let beams = self
+                    .scene
+                    .sources()
+                    .iter()
+                    .any(|s| matches!(s, speckle_endpoints::Source::GaussianBeam(_)))
+                    || self
+                        .scene
+                        .sensors()
+                        .iter()
+                        .any(|s| matches!(s, speckle_endpoints::Sensor::GaussianBeam(_)));
                 let (lags, drift) = self
                     .motion
                     .as_ref()
                     .map_or((1.0, false), |m| (m.lags.len() as f64, m.model.has_drift()));
-                let (bytes, per_vertex) = g1_cost(j, lags, drift, legs, threads);
+                let (bytes, per_vertex) = g1_cost(j, lags, drift || beams, legs, threads);
                 (
                     bytes,
                     "motion.lags",
