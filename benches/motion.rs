@@ -5,6 +5,10 @@
 //! for Brownian motion with drift (the drift connects both copies of every lag at both end
 //! vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
 //!
+//! With Gaussian beams (Bar et al. 2020), whose end vertices' Brownian displacements are sampled
+//! and connected at every lag (as drift is), `g1` at 64 lags of a beam source and a beam sensor
+//! against their static near-field covariance (`beams/...`).
+//!
 //! Also field sequences (`render_field_sequence`, Brownian motion) at 8 times against the static
 //! field sampler (`render_fields`) with the same realizations and paths, in path-frames per
 //! second: each frame connects every vertex again, so the named limit is 8 static renders (a
@@ -14,12 +18,15 @@ mod common;
 
 use common::scene;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use speckle::endpoints::GaussianBeam;
 use speckle::estimators::{
     Coherence, CovarianceOptions, Entries, FieldOptions, NoProgress, render_correlation,
     render_covariance, render_field_sequence, render_fields, render_intensity,
 };
-use speckle::medium::DVec3;
+use speckle::estimators::{Pair, Scene, Sensor, Source};
+use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::motion::{Motion, MotionModel};
+use speckle::phase::Phase;
 use std::hint::black_box;
 
 fn temporal(c: &mut Criterion) {
@@ -85,6 +92,52 @@ fn temporal(c: &mut Criterion) {
     }
 }
 
+/// One Gaussian-beam source focused inside a 16 x 16 x 8 box (mean free path 4, isotropic) and
+/// one Gaussian-beam sensor focused beside it (concentration 16).
+fn beam_scene() -> Scene<HomogeneousBox, Phase> {
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(16.0, 16.0, 8.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
+    let beam = |x: f64| GaussianBeam::new("bench", DVec3::new(x, 0.0, 0.0), DVec3::Z, 16.0);
+    Scene::new(
+        m,
+        Phase::Isotropic,
+        1.0,
+        vec![Source::GaussianBeam(beam(0.0).unwrap())],
+        vec![Sensor::GaussianBeam(beam(0.5).unwrap())],
+        Pair::all(1, 1),
+    )
+    .unwrap()
+}
+
+fn beams(c: &mut Criterion) {
+    let lags: Vec<f64> = (0..64).map(|l| l as f64 * 0.05).collect();
+    let s = beam_scene();
+    let opts = |paths| CovarianceOptions {
+        paths,
+        seed: 1,
+        coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
+    };
+    let mut g = c.benchmark_group("estimators/temporal/beams");
+    g.sample_size(10);
+    let o = opts(8192);
+    g.throughput(Throughput::Elements(8192));
+    g.bench_function("static_covariance", |b| {
+        b.iter(|| black_box(render_covariance(&s, &o, &NoProgress).unwrap()))
+    });
+    let o = opts(512);
+    let model = MotionModel::uniform(Motion::brownian(0.01).unwrap());
+    g.throughput(Throughput::Elements(512));
+    g.bench_function("brownian_64_lags", |b| {
+        b.iter(|| {
+            black_box(
+                render_correlation(&s, &model, &lags, &Entries::Diagonal, &o, &NoProgress).unwrap(),
+            )
+        })
+    });
+    g.finish();
+}
+
 fn sequences(c: &mut Criterion) {
     let times: Vec<f64> = (0..8).map(|l| l as f64 * 0.05).collect();
     let model = MotionModel::uniform(Motion::brownian(0.01).unwrap());
@@ -116,5 +169,5 @@ fn sequences(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, temporal, sequences);
+criterion_group!(benches, temporal, beams, sequences);
 criterion_main!(benches);
