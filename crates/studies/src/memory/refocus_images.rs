@@ -308,8 +308,10 @@ pub struct PixelStats {
     pub mean_re: f64,
     /// Mean of `A`, imaginary part, normalised by `|E A(0)|`.
     pub mean_im: f64,
-    /// Standard error of each part of the mean (`sqrt(Var A / (2 R))`).
+    /// Standard error of the real part of the mean.
     pub mean_se: f64,
+    /// Standard error of the imaginary part of the mean.
+    pub mean_im_se: f64,
     /// Mean power `|A|^2`, normalised.
     pub power: f64,
     /// Its standard error over the realizations.
@@ -320,7 +322,8 @@ pub struct PixelStats {
     pub var_se: f64,
 }
 
-/// The covariance prediction at one pixel (normalised as [`PixelStats`]).
+/// The covariance prediction at one pixel (normalised as [`PixelStats`]; jackknife
+/// bias-corrected values, jackknife standard errors).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PixelPrediction {
     /// `E A`, real part, normalised by `|E A(0)|`, and its jackknife SE.
@@ -563,7 +566,15 @@ impl RefocusStudy {
             }
             out
         };
-        let (value, se) = jackknife(r.groups, stat);
+        // Jackknife standard errors, and the jackknife's bias correction `G v - (G - 1) mean(v_i)`
+        // of the values: `|E A|^2` and the products of covariances in `Var A` carry an upward
+        // bias of the order of the squared standard errors of their entries (many near zero).
+        let (raw, se) = jackknife(r.groups, stat);
+        let gf = r.groups as f64;
+        let loo: Vec<Vec<f64>> = (0..r.groups).map(|i| stat(Some(i))).collect();
+        let value: Vec<f64> = (0..raw.len())
+            .map(|j| gf * raw[j] - (gf - 1.0) * loo.iter().map(|l| l[j]).sum::<f64>() / gf)
+            .collect();
         let norm = value[0];
         let predicted = (0..nc)
             .map(|c| {
@@ -726,7 +737,8 @@ fn pixel_stats(a: &[Complex64]) -> PixelStats {
     PixelStats {
         mean_re: mean.re,
         mean_im: mean.im,
-        mean_se: (var / (2.0 * r)).sqrt(),
+        mean_se: mean_sd(&a.iter().map(|z| z.re).collect::<Vec<_>>()).1,
+        mean_im_se: mean_sd(&a.iter().map(|z| z.im).collect::<Vec<_>>()).1,
         power,
         power_se,
         var,
@@ -748,10 +760,19 @@ impl RefocusImages {
                 m.iter()
                     .zip(p)
                     .map(|(m, p)| {
-                        let z = |x: f64, sx: f64, (y, sy): (f64, f64)| (x - y) / sx.hypot(sy);
+                        // A part that is zero in both up to rounding (Im A at the Delta = 0 target,
+                        // the guide star's own intensities) deviates by 0.
+                        let z = |x: f64, sx: f64, (y, sy): (f64, f64)| {
+                            let (d, s) = (x - y, sx.hypot(sy));
+                            if s < 1e-9 && d.abs() < 1e-9 {
+                                0.0
+                            } else {
+                                d / s
+                            }
+                        };
                         [
                             z(m.mean_re, m.mean_se, p.mean_re),
-                            z(m.mean_im, m.mean_se, p.mean_im),
+                            z(m.mean_im, m.mean_im_se, p.mean_im),
                             z(m.power, m.power_se, p.power),
                             z(m.var, m.var_se, p.var),
                         ]
