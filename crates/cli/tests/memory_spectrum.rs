@@ -440,3 +440,87 @@ fn refocus_writes_its_curves() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("width_um"), "{}", stderr(&o));
 }
+
+/// `speckle refocus --images-only` with an `[images]` section (Fig. 13 top): its files, their
+/// shapes, the PNG mosaic and the sidecar; a bad `[images]` key is named with exit code 2, and
+/// `--images-only` without the section is refused (the physics: `tests/refocus.rs`).
+#[test]
+fn refocus_writes_its_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = "wavelength_um = 0.5\nmean_free_path_um = 23.0\ng = 0.98\nthickness_um = 20.0\n\
+                 width_um = 30.0\nnumerical_aperture = 0.2\ndelta_max_um = 2.0\nn_delta = 3\n\
+                 tau_max_um = 4.0\nn_tau = 5\n\n[render]\npaths = 200\ngroups = 2\n\n[images]\n\
+                 delta_um = [1.0]\nhalf_width_um = 2.0\nn_pixels = 5\nn_rows = 3\n\
+                 realizations = 3\npaths = 50\n";
+    let p = dir.path().join("t.toml");
+    std::fs::write(&p, study).unwrap();
+    let o = speckle(
+        dir.path(),
+        &[
+            "refocus",
+            p.to_str().unwrap(),
+            "--out",
+            "out",
+            "-q",
+            "--images-only",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    assert!(!out.join("t.refocus_shift.npy").exists());
+    assert_eq!(
+        load_f8(&out.join("t.refocus_images.npy")).0,
+        vec![3, 3, 3, 5, 2]
+    );
+    let (shape, power) = load_f8(&out.join("t.refocus_images_power.npy"));
+    assert_eq!(shape, vec![3, 3, 3, 5]);
+    assert!(power.iter().all(|v| v.is_finite() && *v >= 0.0));
+    assert_eq!(
+        load_f8(&out.join("t.refocus_images_mean_power.npy")).0,
+        vec![3, 3, 5]
+    );
+    assert_eq!(
+        load_f8(&out.join("t.refocus_images_offset_um.npy")).1,
+        vec![-2.0, -1.0, 0.0, 1.0, 2.0]
+    );
+    assert_eq!(
+        load_f8(&out.join("t.refocus_images_row_um.npy")).1,
+        vec![-1.0, 0.0, 1.0]
+    );
+    assert_eq!(
+        load_f8(&out.join("t.refocus_images_theta_mrad.npy")).1,
+        vec![0.0, 0.0, -75.0]
+    );
+    for key in [
+        "check_power",
+        "check_var",
+        "predicted_power",
+        "predicted_var",
+    ] {
+        let (shape, _) = load_f8(&out.join(format!("t.refocus_images_{key}.npy")));
+        assert_eq!(shape, vec![3, 5, 2], "{key}");
+    }
+    let png = std::fs::read(out.join("t.refocus_images.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("t.refocus.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["images"]["cases"].as_array().unwrap().len(), 3);
+    assert!(json["files"]["images"]["png"]["file"].is_string());
+    std::fs::write(&p, study.replace("n_pixels = 5", "n_pixels = 4")).unwrap();
+    let o = speckle(dir.path(), &["refocus", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("images.n_pixels"), "{}", stderr(&o));
+    std::fs::write(&p, study.replace("delta_um = [1.0]", "delta_um = [3.0]")).unwrap();
+    let o = speckle(dir.path(), &["refocus", p.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("images.delta_um"), "{}", stderr(&o));
+    let no_images = &study[..study.find("[images]").unwrap()];
+    std::fs::write(&p, no_images).unwrap();
+    let o = speckle(
+        dir.path(),
+        &["refocus", p.to_str().unwrap(), "-q", "--images-only"],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--images-only"), "{}", stderr(&o));
+}

@@ -42,6 +42,7 @@
 //!   the caller's business.
 
 mod refocus;
+mod refocus_images;
 mod render;
 pub(crate) mod study;
 mod tilt;
@@ -50,6 +51,11 @@ mod tilt_shift;
 pub use refocus::{
     MAX_REFOCUS_POINTS, Refocus, RefocusFile, RefocusStudy, load_refocus_file, load_refocus_str,
     optimal_tilt,
+};
+pub use refocus_images::{
+    CHECK_PIXEL_NAMES, ImageCase, ImagePlan, MAX_IMAGE_DISPLACEMENTS, MAX_IMAGE_FIELDS,
+    MAX_IMAGE_PAIRS, MAX_IMAGE_PIXELS, MAX_IMAGE_REALIZATIONS, PixelPrediction, PixelStats,
+    RefocusImages, RefocusImagesFile,
 };
 pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,

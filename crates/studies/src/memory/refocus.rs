@@ -9,13 +9,16 @@
 //! shifted and tilted (Eq. 52). The amplitude in the target mode is
 //!
 //! ```text
-//! A(Delta) = sum_m u_{i2}(tau_m + Delta_b/2) conj(u_{i1}(tau_m - Delta_b/2)) exp(i k 2 sin(theta/2) tau_m)
+//! A(Delta) = sum_m u_{i2}(tau_m + Delta_b/2) conj(u_{i1}(tau_m - Delta_b/2)) exp(-i k 2 sin(theta/2) tau_m)
 //! ```
 //!
 //! with the geometry of [`super::TiltShiftStudy`]: beams `i1, i2` focused on face `a` at `-+
-//! Delta_a / 2`, tilted by `-+theta/2`, the camera a line of Gaussian-beam pixels on face `b`.
-//! The focus displacement is `Delta_a = Delta`. Its mean is the tilt-shift correlation of Eq. 49,
-//! `E A = C(Delta_a, Delta_b, theta)`, a sum of covariance entries.
+//! Delta_a / 2`, tilted by `-+theta/2`, the camera a line of Gaussian-beam pixels on face `b`
+//! (the ramp removes the tilt between the beams' fields on face `b`, `u_{i2} conj(u_{i1}) ~
+//! exp(i k 2 sin(theta/2) x)` for plane waves `exp(i k d.x)`). The focus displacement is
+//! `Delta_a = Delta`. Its mean is the complex conjugate of the tilt-shift correlation of Eq. 49,
+//! `E A = conj(C(Delta_a, Delta_b, theta))`, a sum of covariance entries; the study works with
+//! `C` (the same power). The rendered fields themselves (Fig. 13 top): `refocus_images.rs`.
 //!
 //! What is computed: the power of the focus, `|E A|^2`, normalised by its value at `Delta = 0`,
 //! where `E A(0) = sum_m E|u_i(tau_m)|^2` is real and positive (the total mean intensity on the
@@ -23,7 +26,8 @@
 //! speckle background around the focus, which grows as the number `N` of independent speckle
 //! grains the camera spans while the focus grows as `N^2`; the normalised power of the focus is
 //! the paper's "expected power at focus points" in the limit of a large camera (the enhancement
-//! of phase conjugation is of order `N`). The background (a fourth moment) is not rendered.
+//! of phase conjugation is of order `N`). The background (a fourth moment) is measured on the
+//! rendered fields of the `[images]` section (`refocus_images.rs`), against its Gaussian value.
 //!
 //! The two variants, for every `Delta` (the shift `Delta_b` of the pattern on face `b` and the
 //! tilt `theta` are tied by the Dirac delta of Eq. 50, `Delta_b = Delta_a + L theta`):
@@ -43,6 +47,7 @@
 //! independent renders of every point; `Delta = 0` is rendered once and shared by both
 //! variants).
 
+use super::refocus_images::{ImagePlan, RefocusImagesFile, validate as validate_images};
 use super::study::{StudyOutput, StudyOverrides, StudyRender, parse};
 use super::tilt_shift::{TiltShiftFile, TiltShiftStudy, eq50, validate as validate_tilt_shift};
 use crate::StudyError;
@@ -113,6 +118,9 @@ pub struct RefocusFile {
     /// `[output]`.
     #[serde(default)]
     pub output: StudyOutput,
+    /// `[images]`: the rendered refocused fields (optional; see [`super::RefocusImagesFile`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub images: Option<RefocusImagesFile>,
 }
 
 /// A validated refocusing study.
@@ -129,6 +137,8 @@ pub struct RefocusStudy {
     /// The scenes' geometry: a tilt-shift study of the same slab, beams and camera (its own
     /// grids unused).
     pub geometry: TiltShiftStudy,
+    /// The validated `[images]`, if any.
+    pub images: Option<ImagePlan>,
 }
 
 /// The tilt of Eq. 52: the `theta` maximising Eq. 50 (derivation's form) at the focus
@@ -220,11 +230,16 @@ fn validate(
         default_name,
     )?;
     let n = file.n_delta;
+    let images = match &file.images {
+        Some(im) => Some(validate_images(im, d_max, file.width_um, l, file.n_tau)?),
+        None => None,
+    };
     Ok(RefocusStudy {
         name: geometry.name.clone(),
         origin: origin.to_string(),
         delta: (0..n).map(|j| d_max * j as f64 / (n - 1) as f64).collect(),
         geometry,
+        images,
         file,
     })
 }
