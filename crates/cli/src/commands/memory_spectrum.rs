@@ -3,7 +3,6 @@
 
 use super::*;
 use crate::error;
-use speckle::scene::npy::encode_f8;
 use speckle::studies::memory::{LAYOUT, load_file};
 use speckle::studies::plot;
 
@@ -44,12 +43,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     say!("{}", result.text(&s).trim_end());
 
     let n = &s.name;
-    let mut files = json!({ "layout": LAYOUT });
-    for array in result.arrays(&s) {
-        let file = format!("{n}.{}.npy", array.key);
-        files[array.key] = json!({"file": file, "shape": array.shape, "content": array.content});
-        staged.add(file, encode_f8(&array.shape, &array.data));
-    }
+    let mut files = stage_study_arrays(&mut staged, n, result.arrays(&s));
+    files["layout"] = json!(LAYOUT);
     let svg_file = format!("{n}.memory.svg");
     staged.add(svg_file.clone(), plot::svg(&s, &result)?.into_bytes());
     files["svg"] = json!(svg_file);

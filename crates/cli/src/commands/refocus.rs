@@ -5,7 +5,6 @@
 
 use super::*;
 use crate::error;
-use speckle::scene::npy::encode_f8;
 use speckle::studies::memory::load_refocus_file;
 
 /// Arguments of `refocus`.
@@ -23,27 +22,22 @@ pub struct Args {
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let o = a.opts.overrides();
     let s = load_refocus_file(&a.study, &o)?;
-    set_threads(a.opts.threads)?;
-    install_interrupt_handler(true);
-    let mut staged = prepare(&s.file.output.dir)?;
     if a.images_only && s.images.is_none() {
         anyhow::bail!(
             "{}: --images-only needs an [images] section in the study file",
             s.origin
         );
     }
-    let mut cost = s.estimate(threads());
-    if a.images_only {
-        cost.seconds = 0.0;
-    }
-    let (image_seconds, image_bytes) = s.images_estimate(threads());
-    cost.seconds += image_seconds;
-    cost.bytes += image_bytes;
-    speckle::scene::cost::guard(&cost, speckle::scene::cost::machine_memory(), a.opts.force)
-        .map_err(|e| LoadError::from(e).in_document(&s.origin))?;
-    if !a.opts.quiet {
-        say!("{}: estimate: {}", s.name, cost.describe());
-    }
+    let mut staged = a.opts.start(&s.file.output.dir, &s.origin, &s.name, |t| {
+        let mut cost = s.estimate(t);
+        if a.images_only {
+            cost.seconds = 0.0;
+        }
+        let (image_seconds, image_bytes) = s.images_estimate(t);
+        cost.seconds += image_seconds;
+        cost.bytes += image_bytes;
+        cost
+    })?;
     let r = &s.file.render;
     let n = &s.name;
     let mut files = json!({});
@@ -59,12 +53,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         progress.finish();
         let result = result.map_err(error::study)?;
         say!("{}", result.text(&s).trim_end());
-        for array in result.arrays(&s) {
-            let file = format!("{n}.{}.npy", array.key);
-            files[array.key] =
-                json!({"file": file, "shape": array.shape, "content": array.content});
-            staged.add(file, encode_f8(&array.shape, &array.data));
-        }
+        files = stage_study_arrays(&mut staged, n, result.arrays(&s));
         let svg_file = format!("{n}.refocus.svg");
         staged.add(svg_file.clone(), result.figure(&s).svg()?.into_bytes());
         files["svg"] = json!(svg_file);
@@ -90,13 +79,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             .map_err(error::study)?
             .expect("the study has an [images] section");
         say!("{}", result.text(plan).trim_end());
-        let mut image_files = json!({});
-        for array in result.arrays(&s, plan) {
-            let file = format!("{n}.{}.npy", array.key);
-            image_files[array.key] =
-                json!({"file": file, "shape": array.shape, "content": array.content});
-            staged.add(file, encode_f8(&array.shape, &array.data));
-        }
+        let mut image_files = stage_study_arrays(&mut staged, n, result.arrays(&s, plan));
         let png_file = format!("{n}.refocus_images.png");
         staged.add(png_file.clone(), mosaic(plan, &result)?);
         image_files["png"] = json!({

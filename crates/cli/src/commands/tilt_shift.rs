@@ -5,7 +5,6 @@
 
 use super::*;
 use crate::error;
-use speckle::scene::npy::encode_f8;
 use speckle::studies::memory::load_tilt_shift_file;
 
 /// Arguments of `tilt-shift`.
@@ -20,15 +19,9 @@ pub struct Args {
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let o = a.opts.overrides();
     let s = load_tilt_shift_file(&a.study, &o)?;
-    set_threads(a.opts.threads)?;
-    install_interrupt_handler(true);
-    let mut staged = prepare(&s.file.output.dir)?;
-    let cost = s.estimate(threads());
-    speckle::scene::cost::guard(&cost, speckle::scene::cost::machine_memory(), a.opts.force)
-        .map_err(|e| LoadError::from(e).in_document(&s.origin))?;
-    if !a.opts.quiet {
-        say!("{}: estimate: {}", s.name, cost.describe());
-    }
+    let mut staged = a
+        .opts
+        .start(&s.file.output.dir, &s.origin, &s.name, |t| s.estimate(t))?;
     let r = &s.file.render;
     let total = ((s.theta.len() * s.delta_b.len()) as u64).saturating_mul(r.paths);
     let progress = CliProgress::new(total, "paths", &s.name, a.opts.quiet, None);
@@ -37,12 +30,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let result = result.map_err(error::study)?;
     say!("{}", result.text(&s).trim_end());
     let n = &s.name;
-    let mut files = json!({});
-    for array in result.arrays(&s) {
-        let file = format!("{n}.{}.npy", array.key);
-        files[array.key] = json!({"file": file, "shape": array.shape, "content": array.content});
-        staged.add(file, encode_f8(&array.shape, &array.data));
-    }
+    let mut files = stage_study_arrays(&mut staged, n, result.arrays(&s));
     let svg_file = format!("{n}.tilt_shift.svg");
     staged.add(svg_file.clone(), result.figure(&s).svg()?.into_bytes());
     files["svg"] = json!(svg_file);
