@@ -669,14 +669,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
     };
     let e_len: usize = list.len();
-    let beams = scene
-        .sources()
-        .iter()
-        .any(|s| matches!(s, speckle_endpoints::Source::GaussianBeam(_)))
-        || scene
-            .sensors()
-            .iter()
-            .any(|s| matches!(s, speckle_endpoints::Sensor::GaussianBeam(_)));
+    let beams = scene.has_beams();
     let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
     let tracer = scene.tracer_with(
         options.sampling,

@@ -454,16 +454,7 @@ impl Problem {
             Command::G1 => {
                 // Drift, and Gaussian beams (whose end vertices' displacements are sampled),
                 // connect both copies of every lag.
-                let beams = self
-                    .scene
-                    .sources()
-                    .iter()
-                    .any(|s| matches!(s, speckle_endpoints::Source::GaussianBeam(_)))
-                    || self
-                        .scene
-                        .sensors()
-                        .iter()
-                        .any(|s| matches!(s, speckle_endpoints::Sensor::GaussianBeam(_)));
+                let beams = self.scene.has_beams();
                 let (lags, drift) = self
                     .motion
                     .as_ref()

@@ -247,6 +247,17 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         &self.sensors
     }
 
+    /// Whether any source or sensor is a focused Gaussian beam.
+    pub fn has_beams(&self) -> bool {
+        self.sources
+            .iter()
+            .any(|s| matches!(s, Source::GaussianBeam(_)))
+            || self
+                .sensors
+                .iter()
+                .any(|s| matches!(s, Sensor::GaussianBeam(_)))
+    }
+
     /// The path sampler of this scene's renders: `sampling`'s strategies, plus, with forward and
     /// reversed paths, first vertices around the point sources and sensors that lie inside the
     /// medium or within one extinction length of it
