@@ -24,9 +24,10 @@
 //! (`speckle::studies::nearfield::sampling`, shared with `speckle sampling-gain` and
 //! `scenes/fig9_sampling_gain.toml`); this test keeps the comparisons and their tolerances.
 
-use speckle::estimators::{CovarianceEstimate, NoProgress, Scene};
-use speckle::medium::HomogeneousBox;
-use speckle::paths::BeamStrategy;
+use speckle::endpoints::GaussianBeam;
+use speckle::estimators::{CovarianceEstimate, NoProgress, Pair, Scene, Sensor, Source};
+use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::paths::{BeamStrategy, MAX_BEAM_COMPONENTS};
 use speckle::phase::{Dimension, Phase};
 use speckle::studies::nearfield::{
     SamplingCase, StrategyRender, gain, max_z, relative_ses, render_strategy,
@@ -167,6 +168,50 @@ fn beam_sampling_gains_most_in_a_wide_slab_with_forward_scattering() {
          directions {:.1}",
         g_pos.0, g_both.0
     );
+}
+
+/// A camera: more beams than [`MAX_BEAM_COMPONENTS`] (two sources and a line of 16 pixels on
+/// the exit face, 0.2 apart over the sources' light), where every pixel's beam is a position component, the sources'
+/// also sample directions, and the volume keeps half the samples. The mixture of this size is
+/// checked against uniform sampling as the small scenes are (every entry of the 32 x 32
+/// covariance within 4 combined SE), and its gain printed.
+#[test]
+fn beam_sampling_of_a_camera_agrees_with_uniform_sampling() {
+    let (lat, depth, gamma) = (10.0, 3.0, 16.0);
+    let bounds = Aabb::centered(DVec3::ZERO, DVec3::new(lat, lat, depth)).unwrap();
+    let medium = HomogeneousBox::from_mean_free_path(bounds, 3.0, 1.0).unwrap();
+    let at = |x: f64, z: f64| DVec3::new(x, 0.0, z);
+    let beam = |field: &str, f: DVec3| GaussianBeam::new(field, f, DVec3::Z, gamma).unwrap();
+    let sources: Vec<Source> = [0.0, 1.0]
+        .iter()
+        .map(|&x| Source::GaussianBeam(beam("source", at(x, -0.5 * depth))))
+        .collect();
+    let sensors: Vec<Sensor> = (0..16)
+        .map(|m| Sensor::GaussianBeam(beam("sensor", at(0.2 * m as f64 - 1.0, 0.5 * depth))))
+        .collect();
+    assert!(sources.len() + sensors.len() > MAX_BEAM_COMPONENTS);
+    let pairs = Pair::all(2, sensors.len());
+    let s = Scene::new(medium, forward_phase(6.0), 1.0, sources, sensors, pairs).unwrap();
+    let off = render(&s, BeamStrategy::Off, 200_000, 41);
+    let both = render(&s, BeamStrategy::PositionAndDirection, 100_000, 42);
+    let z = max_z(&off.estimate, &both.estimate);
+    let g = gain(&off, &both);
+    let worst = |c: &CovarianceEstimate| *relative_ses(c).last().unwrap();
+    println!(
+        "camera of 16 pixels: max z uniform vs beams {z:.2}; worst relative SE: uniform {:.4} \
+         ({:.2} s), beams {:.4} ({:.2} s); variance x time gain {:.1} (median {:.1})",
+        worst(&off.estimate),
+        off.seconds,
+        worst(&both.estimate),
+        both.seconds,
+        g.0,
+        g.1
+    );
+    assert!(
+        worst(&both.estimate) < 0.05,
+        "the camera render is not resolved"
+    );
+    assert!(z < 4.0, "the camera's beam mixture disagrees, z {z}");
 }
 
 /// Heavier (`validation/run`): the 3D box with its reflection sensor at 400 000 paths per render

@@ -12,10 +12,18 @@ use speckle_phase::PhaseFunction;
 /// ([`Tracer::with_point_endpoints`]).
 pub const MAX_OUTSIDE_COMPONENTS: usize = 64;
 
-/// Most beam components of the first-vertex mixture ([`Tracer::with_endpoints`]): with more
-/// distinct beams (a `gaussian_grid` camera), the sensors' beams are left out, and with more
-/// source beams than this, all are.
+/// Most beam components of the first-vertex mixture that also sample first directions
+/// ([`Tracer::with_endpoints`]): their direction density, a vMF pair mixture per beam, costs
+/// tens of exponentials at every vertex. With more distinct beams (a `gaussian_grid` camera),
+/// only the sources' beams sample directions (none with more source beams than this); the
+/// others are position components.
 pub const MAX_BEAM_COMPONENTS: usize = 16;
+
+/// Most beam components of the first-vertex mixture ([`Tracer::with_endpoints`]). A position
+/// component costs one exponential per vertex, less than the connection the estimator makes to
+/// the same beam, and a table of a few kilobytes; with more distinct beams the sensors' are left
+/// out, and with more source beams than this, all are.
+pub const MAX_POSITION_BEAMS: usize = 4096;
 
 /// How sub-paths are sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -191,12 +199,16 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// [`BeamStrategy::PositionAndDirection`], first directions from the vMF pair mixture of
     /// `|Upsilon|^2` (Sec. 6) mixed with the phase function about the beam's axis. Beams always
     /// leave the volume strategy its share `1 / (n + 1)` (`n` components): the beam model is a
-    /// proposal, not the throughput. The weights use the exact density of the whole mixture,
+    /// proposal, not the throughput; with more than [`MAX_BEAM_COMPONENTS`] beams it keeps half.
+    /// The weights use the exact density of the whole mixture,
     /// evaluated for both orders of every path ([`Vertex::both_orders`]); unlike point
     /// components, beams do not need reversed paths. Every vertex evaluates every beam's
-    /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' are kept (few
-    /// illuminators, many pixels: the paper samples the first segment for that reason), and
-    /// none beyond that many sources.
+    /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' sample
+    /// directions (few illuminators, many pixels: the paper samples the first segment for that
+    /// reason) and the others only positions, which covers the foci of every pixel of a camera
+    /// (leaving them out gave the fields rare paths of large weight near the pixels' foci);
+    /// beyond [`MAX_POSITION_BEAMS`] only the sources' beams are kept, and none beyond that
+    /// many sources.
     pub fn with_endpoints(
         mut self,
         points: &[DVec3],
@@ -245,22 +257,42 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             unique
         };
         let mut unique = distinct(&[sources, sensors].concat());
-        if unique.len() > MAX_BEAM_COMPONENTS {
+        if unique.len() > MAX_POSITION_BEAMS {
             unique = distinct(sources);
         }
-        if unique.len() > MAX_BEAM_COMPONENTS || self.beams == BeamStrategy::Off {
+        if unique.len() > MAX_POSITION_BEAMS || self.beams == BeamStrategy::Off {
             unique.clear();
         }
+        // Which beams also sample directions: all of them, or past the cap the sources'.
+        let directed = if unique.len() <= MAX_BEAM_COMPONENTS {
+            unique.clone()
+        } else {
+            let s = distinct(sources);
+            if s.len() <= MAX_BEAM_COMPONENTS {
+                s
+            } else {
+                vec![]
+            }
+        };
         let lobes = self.phases[0].amplitude_lobes();
         let directions = self.beams == BeamStrategy::PositionAndDirection;
         let beams: Vec<BeamSampler> = unique
             .iter()
-            .map(|b| BeamSampler::new(b, m, k, lobes, directions))
+            .map(|b| BeamSampler::new(b, m, k, lobes, directions && directed.contains(b)))
             .collect();
         let n = near.len() + beams.len();
         self.points = (n > 0).then(|| EndpointMixture {
+            // Up to MAX_BEAM_COMPONENTS beams every strategy has an equal share: each beam
+            // component follows its own beam's intensity. A larger set (a camera, a grid of
+            // foci) covers a region rather than matching any one beam (the sum of many pixels'
+            // intensities is flat in depth where each pixel's density falls), so the volume
+            // keeps half the samples and every weight stays within twice uniform sampling's.
             volume: if others || far || !beams.is_empty() {
-                1.0 / (n + 1) as f64
+                if beams.len() > MAX_BEAM_COMPONENTS {
+                    0.5
+                } else {
+                    1.0 / (n + 1) as f64
+                }
             } else {
                 0.0
             },
@@ -490,6 +522,54 @@ mod tests {
     }
 
     #[test]
+    fn a_camera_mixture_weighs_first_vertices_by_its_density() {
+        // E[sigma_s / p(x1)] = sigma_s |box| for any density p that covers the box. Past the
+        // beam cap (a line camera of 18 pixels and two sources) the density must be the one
+        // sampled: the volume's half share, positions for the pixels, directions for the
+        // sources. Writing the volume's share as 1 / (n + 1) in the density, as below the cap,
+        // moves the mean by a factor of several.
+        let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 3.0)).unwrap();
+        let sigma_s = 1.0 / 3.0;
+        let m = HomogeneousBox::new(b, sigma_s, 0.0).unwrap();
+        let beam = |x: f64, z: f64, axis: DVec3| Beam {
+            focus: DVec3::new(x, 0.0, z),
+            axis,
+            concentration: 16.0,
+        };
+        let sources = [beam(0.0, -1.5, DVec3::Z), beam(1.0, -1.5, DVec3::Z)];
+        let camera: Vec<Beam> = (0..18)
+            .map(|i| beam(0.2 * i as f64 - 1.0, 1.5, -DVec3::Z))
+            .collect();
+        let cfg = TracerConfig {
+            beams: BeamStrategy::PositionAndDirection,
+            ..TracerConfig::default()
+        };
+        let t = Tracer::new(&m, &Phase::Isotropic, cfg)
+            .unwrap()
+            .with_endpoints(&[], &sources, &camera, std::f64::consts::TAU, true);
+        assert_eq!(t.points.as_ref().unwrap().volume, 0.5);
+        struct Moments(f64, f64);
+        impl VertexSink for Moments {
+            fn first(&mut self, _x1: DVec3, _ty: usize, w: f64, _rng: &mut PathRng) {
+                self.0 += w;
+                self.1 += w * w;
+            }
+            fn vertex(&mut self, _v: &Vertex, _rng: &mut PathRng) {}
+        }
+        let mut s = Moments(0.0, 0.0);
+        let n = 100_000;
+        for i in 0..n {
+            t.trace(&mut PathRng::new(9, i), &mut s);
+        }
+        let n = n as f64;
+        let mean = s.0 / n;
+        let se = ((s.1 / n - mean * mean) / n).sqrt();
+        let v = sigma_s * 300.0;
+        assert!(se < 0.01 * v, "unresolved: {mean} +- {se}");
+        assert!((mean - v).abs() < 4.5 * se, "{mean} +- {se} against {v}");
+    }
+
+    #[test]
     fn flatland_paths_stay_in_the_plane_with_circle_weights() {
         // V = sigma_s * area; the weight at x2 and beyond is 2 pi V (uniform first angle).
         struct InPlane(u64, f64);
@@ -587,14 +667,22 @@ mod tests {
         // Off: no mixture at all (the tracer is the plain one).
         let off = t(BeamStrategy::Off).with_endpoints(&[], &[beam(1.0)], &[], k, true);
         assert!(off.points.is_none());
-        // A camera of sensors beyond the cap: the sources' beams alone.
+        // Which beams sample directions (the isotropic phase function has one lobe).
+        let directed = |t: &Tracer<_, _>| {
+            let p = t.points.as_ref().unwrap();
+            let d = p.beams.iter().filter(|b| b.samples_directions()).count();
+            (p.beams.len(), d)
+        };
+        // A camera of sensors beyond the cap: every beam a position component, the sources'
+        // also sampling directions.
         let camera: Vec<Beam> = (0..MAX_BEAM_COMPONENTS)
             .map(|i| beam(0.1 * i as f64))
             .collect();
         let src = [beam(3.0), beam(3.5)];
         let capped =
             t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &camera, k, true);
-        assert_eq!(capped.points.as_ref().unwrap().beams.len(), 2);
+        assert_eq!(directed(&capped), (MAX_BEAM_COMPONENTS + 2, 2));
+        assert_eq!(capped.points.as_ref().unwrap().volume, 0.5);
         let kept = t(BeamStrategy::PositionAndDirection).with_endpoints(
             &[],
             &src,
@@ -602,14 +690,22 @@ mod tests {
             k,
             true,
         );
-        assert_eq!(
-            kept.points.as_ref().unwrap().beams.len(),
-            MAX_BEAM_COMPONENTS
-        );
-        // More sources than the cap: none.
+        assert_eq!(directed(&kept), (MAX_BEAM_COMPONENTS, MAX_BEAM_COMPONENTS));
+        let volume = kept.points.as_ref().unwrap().volume;
+        assert_eq!(volume, 1.0 / (MAX_BEAM_COMPONENTS + 1) as f64);
+        // More sources than the cap: positions only.
         let many_sources = [&camera[..], &src[..1]].concat();
-        let many = t(BeamStrategy::Position).with_endpoints(&[], &many_sources, &[], k, true);
-        assert!(many.points.is_none());
+        let many =
+            t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &many_sources, &[], k, true);
+        assert_eq!(directed(&many), (MAX_BEAM_COMPONENTS + 1, 0));
+        // Past the position cap: the sources' beams alone, and none past it in sources.
+        let huge: Vec<Beam> = (0..=MAX_POSITION_BEAMS)
+            .map(|i| beam(1e-3 * i as f64))
+            .collect();
+        let big = t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &huge, k, true);
+        assert_eq!(directed(&big), (2, 2));
+        let none = t(BeamStrategy::Position).with_endpoints(&[], &huge, &[], k, true);
+        assert!(none.points.is_none());
     }
 
     #[test]
