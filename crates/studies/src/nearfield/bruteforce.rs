@@ -29,7 +29,8 @@
 //! integrand (checked against a direct Simpson integral of the mask, the second value of the
 //! quadrature error). Only the extra contraction costs. The difference from the apodized brute
 //! force is accumulated path by path (paired standard errors): it is the apodization's model
-//! difference, reported, not tested (the closed forms cannot express a binary aperture).
+//! difference, reported, not tested (the closed forms cannot express a binary aperture), beside
+//! a single-scattering estimate of it ([`BruteForceStudy::single_scattering_ratios`]).
 //!
 //! **Biased reference** (Table 2's second row; notes Sec. 7.1 `bias_attenuation`). The apodized
 //! brute force again, with every plane wave attenuated from the aperture to the vertex along
