@@ -177,8 +177,9 @@ fn gaussian_grid_fields_draw_images() {
 fn bruteforce_writes_its_entries_and_table() {
     let dir = tempfile::tempdir().unwrap();
     let study = "size = [8.0, 4.0]\nmean_free_path = 8.0\nconcentration = 20.0\n\
-                 source_offset = 1.0\nsensor_shift = 0.5\nnodes = 16\ntheta_max = 1.5\n\n\
-                 [render]\npaths = 400\nnear_paths = 400\nchunk = 150\ntiming_paths = 80\n";
+                 source_offset = 1.0\nsensor_shift = 0.5\nnodes = 24\nbinary_nodes = 8\n\
+                 theta_max = 1.5\n\n[render]\npaths = 400\nnear_paths = 400\nchunk = 150\n\
+                 biased_paths = 200\ntiming_paths = 80\n";
     let p = write(dir.path(), "t.toml", study);
     let o = speckle(
         dir.path(),
@@ -193,6 +194,16 @@ fn bruteforce_writes_its_entries_and_table() {
         ("far", 72),
         ("far_stderr", 72),
         ("z", 72),
+        ("far_binary", 72),
+        ("far_binary_stderr", 72),
+        ("far_biased", 72),
+        ("far_biased_stderr", 72),
+        ("binary_minus_apodized", 72),
+        ("binary_minus_apodized_stderr", 72),
+        ("biased_minus_apodized", 72),
+        ("biased_minus_apodized_stderr", 72),
+        ("z_binary", 72),
+        ("z_biased", 72),
     ] {
         let v = npy_f64(&out.join(format!("t.bruteforce_{key}.npy")));
         assert_eq!(v.len(), len, "{key}");
@@ -200,12 +211,16 @@ fn bruteforce_writes_its_entries_and_table() {
     }
     // The diagonal (entry 0, real part) is an intensity.
     assert!(npy_f64(&out.join("t.bruteforce_far.npy"))[0] > 0.0);
+    assert!(npy_f64(&out.join("t.bruteforce_far_binary.npy"))[0] > 0.0);
+    assert!(npy_f64(&out.join("t.bruteforce_far_biased.npy"))[0] > 0.0);
     assert!(npy_f64(&out.join("t.bruteforce_near.npy"))[0] > 0.0);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("t.bruteforce.json")).unwrap())
             .unwrap();
     assert_eq!(json["table"].as_array().unwrap().len(), 3);
-    assert_eq!(json["plane_waves"]["sensor"], 32);
+    assert_eq!(json["plane_waves"]["sensor"], 48);
+    assert_eq!(json["render"]["biased_reference_paths"], 200);
+    assert!(json["binary_aperture"]["half_width_rad"].as_f64().unwrap() > 0.0);
     assert_eq!(
         json["files"]["bruteforce_near"]["shape"],
         serde_json::json!([2, 6, 6, 2])
@@ -213,7 +228,7 @@ fn bruteforce_writes_its_entries_and_table() {
     assert!(
         std::fs::read_to_string(out.join("t.bruteforce.svg"))
             .unwrap()
-            .contains("brute force")
+            .contains("binary aperture")
     );
     // The same numbers on 3 threads.
     let o = speckle(
@@ -229,7 +244,16 @@ fn bruteforce_writes_its_entries_and_table() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    for key in ["near", "near_stderr", "far", "far_stderr", "z"] {
+    for key in [
+        "near",
+        "near_stderr",
+        "far",
+        "far_stderr",
+        "z",
+        "far_binary",
+        "far_biased",
+        "biased_minus_apodized",
+    ] {
         let file = format!("t.bruteforce_{key}.npy");
         assert_eq!(
             std::fs::read(out.join(&file)).unwrap(),
@@ -240,7 +264,7 @@ fn bruteforce_writes_its_entries_and_table() {
     let p = write(
         dir.path(),
         "t.toml",
-        &study.replace("nodes = 16", "nodes = 2"),
+        &study.replace("nodes = 24", "nodes = 2"),
     );
     let o = speckle(dir.path(), &["bruteforce", p.to_str().unwrap(), "-q"]);
     assert_eq!(o.status.code(), Some(2));

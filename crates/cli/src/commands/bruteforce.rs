@@ -1,7 +1,8 @@
 //! `speckle bruteforce`: the study of `speckle::studies::nearfield::BruteForceStudy` (Bar et al.
 //! 2020, Fig. 7, Tables 1-2): the near-field closed forms against the brute-force aperture
-//! integral of far-field paths (Eqs. 9-11) entry by entry, and the runtime for the same standard
-//! error; renders it under a progress bar and writes its arrays, table, sidecar and plot.
+//! integral of far-field paths (Eqs. 9-11) entry by entry, with apodized and binary apertures and
+//! as the biased reference (Table 2), and the runtime for the same standard error; renders it
+//! under a progress bar and writes its arrays, table, sidecar and plot.
 
 use super::*;
 use crate::error;
@@ -24,6 +25,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let r = &s.file.render;
     let total = (2 * r.near_paths)
         .saturating_add(r.paths)
+        .saturating_add(r.biased_paths.unwrap_or(r.paths))
         .saturating_add(r.timing_paths);
     let progress = CliProgress::new(total, "paths", &s.name, a.opts.quiet, None);
     let result = s.render(&progress);
