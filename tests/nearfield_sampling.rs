@@ -171,10 +171,11 @@ fn beam_sampling_gains_most_in_a_wide_slab_with_forward_scattering() {
 }
 
 /// A camera: more beams than [`MAX_BEAM_COMPONENTS`] (two sources and a line of 16 pixels on
-/// the exit face, 0.2 apart over the sources' light), where every pixel's beam is a position component, the sources'
-/// also sample directions, and the volume keeps half the samples. The mixture of this size is
-/// checked against uniform sampling as the small scenes are (every entry of the 32 x 32
-/// covariance within 4 combined SE), and its gain printed.
+/// the exit face, 0.2 apart over the sources' light), where every pixel's beam is a position
+/// component, the sources' also sample directions, and the volume, the sources and the pixels
+/// each have a third of the samples. The mixture of this size is checked against uniform
+/// sampling as the small scenes are (every entry of the 32 x 32 covariance within 4 combined
+/// SE), and its gain printed.
 #[test]
 fn beam_sampling_of_a_camera_agrees_with_uniform_sampling() {
     let (lat, depth, gamma) = (10.0, 3.0, 16.0);

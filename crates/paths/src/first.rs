@@ -539,8 +539,9 @@ fn sample_vmf(r: DVec3, u: [f64; 2]) -> DVec3 {
 
 /// The first-vertex mixture of a medium with endpoints to sample around: point endpoints inside
 /// the medium or next to it, and focused Gaussian beams. With probability `volume` the volume
-/// strategy ([`FirstVertexSampler`]), otherwise, with equal probabilities, one of the
-/// components: a point `x1 = p + r w` around one of the `points`, `w` uniform on the sphere
+/// strategy ([`FirstVertexSampler`]), otherwise one of the components, by groups (`groups`:
+/// each group has a probability, split equally among its components; usually one group of
+/// all): a point `x1 = p + r w` around one of the `points`, `w` uniform on the sphere
 /// (circle) and `r` exponential at `rate`, density `rate exp(-rate r) / (4 pi r^2)` (flatland
 /// `/ (2 pi r)`) over all space, or a point from one of the `beams` ([`BeamSampler`]). Points
 /// that land outside the medium's box start no path (their contribution, zero, is counted).
@@ -554,6 +555,10 @@ pub(crate) struct EndpointMixture {
     pub(crate) beams: Vec<BeamSampler>,
     /// Probability of the volume strategy (0: the components alone).
     pub(crate) volume: f64,
+    /// Groups of components, points first and then beams in order: `(end, probability)`, the
+    /// components from the previous group's end to `end` sharing `probability` equally. The
+    /// probabilities sum to `1 - volume`.
+    pub(crate) groups: Vec<(usize, f64)>,
     pub(crate) dimension: Dimension,
 }
 
@@ -566,14 +571,20 @@ pub(crate) enum Component {
 }
 
 impl EndpointMixture {
-    fn count(&self) -> usize {
-        self.points.len() + self.beams.len()
+    /// One group of all components (`points` then `beams`) beside the volume's share.
+    pub(crate) fn one_group(n: usize, volume: f64) -> Vec<(usize, f64)> {
+        vec![(n, 1.0 - volume)]
     }
 
-    /// The probability of each component.
-    #[inline]
-    pub(crate) fn share(&self) -> f64 {
-        (1.0 - self.volume) / self.count() as f64
+    /// The groups with their component ranges and per-component probabilities.
+    fn ranges(&self) -> impl Iterator<Item = (std::ops::Range<usize>, f64)> + '_ {
+        let mut start = 0;
+        self.groups.iter().map(move |&(end, p)| {
+            let r = start..end;
+            start = end;
+            let each = p / r.len() as f64;
+            (r, each)
+        })
     }
 
     /// Whether some beam samples first directions from its own strategy.
@@ -594,21 +605,44 @@ impl EndpointMixture {
         }
     }
 
+    /// The sums over the components in `r` of the points' densities and of `beam` over the
+    /// beams, as two sums (points, then beams).
+    #[inline]
+    fn sums(
+        &self,
+        r: std::ops::Range<usize>,
+        x: DVec3,
+        beam: impl Fn(&BeamSampler) -> f64,
+    ) -> (f64, f64) {
+        let np = self.points.len();
+        let points: f64 = (r.start.min(np)..r.end.min(np))
+            .map(|k| self.point_pdf(k, x))
+            .sum();
+        let (b0, b1) = (r.start.max(np) - np, r.end.max(np) - np);
+        let beams = if b0 == b1 {
+            0.0
+        } else {
+            self.beams[b0..b1].iter().map(beam).sum::<f64>()
+        };
+        (points, beams)
+    }
+
     /// The mixture density at `x` (inside the box), given the volume strategy's density there.
     #[inline]
     pub(crate) fn pdf(&self, volume_pdf: f64, x: DVec3) -> f64 {
-        let points: f64 = (0..self.points.len()).map(|k| self.point_pdf(k, x)).sum();
-        let all = if self.beams.is_empty() {
-            points
-        } else {
-            points + self.beams.iter().map(|b| b.pdf(x)).sum::<f64>()
-        };
-        self.volume * volume_pdf + self.share() * all
+        let mut total = self.volume * volume_pdf;
+        for (r, each) in self.ranges() {
+            let (points, beams) = self.sums(r, x, |b| b.pdf(x));
+            let all = if beams == 0.0 { points } else { points + beams };
+            total += each * all;
+        }
+        total
     }
 
     /// The joint density of the first vertex `x` and first direction `w` when beams sample
-    /// directions: `volume q_o(x) p(w) + share (sum_points q_k(x) p(w) + sum_beams q_j(x)
-    /// p_j(w | x))`, with `p` the configured direction density `base`.
+    /// directions: `volume q_o(x) p(w) + sum over groups of each component's probability times
+    /// (sum_points q_k(x) p(w) + sum_beams q_j(x) p_j(w | x))`, with `p` the configured direction
+    /// density `base`.
     #[inline]
     pub(crate) fn joint_pdf<P: PhaseFunction>(
         &self,
@@ -618,11 +652,9 @@ impl EndpointMixture {
         x: DVec3,
         w: DVec3,
     ) -> f64 {
-        let points: f64 = (0..self.points.len()).map(|k| self.point_pdf(k, x)).sum();
-        let beams: f64 = self
-            .beams
-            .iter()
-            .map(|b| {
+        let mut total = self.volume * volume_pdf * base;
+        for (r, each) in self.ranges() {
+            let (points, beams) = self.sums(r, x, |b| {
                 let q = b.pdf(x);
                 if q == 0.0 {
                     0.0
@@ -631,17 +663,29 @@ impl EndpointMixture {
                 } else {
                     q * base
                 }
-            })
-            .sum();
-        self.volume * volume_pdf * base + self.share() * (points * base + beams)
+            });
+            total += each * (points * base + beams);
+        }
+        total
     }
 
-    /// A point sampled from one of the components, chosen by `c` in `[volume, 1)`, with three
-    /// variates, and which component it came from.
+    /// A point sampled from one of the components, chosen by `c` in `[volume, 1)` (a group by
+    /// its probability, then a component of it), with three variates, and which component it
+    /// came from.
     #[inline]
     pub(crate) fn sample_component(&self, c: f64, u: [f64; 3]) -> (DVec3, Component) {
-        let n = self.count();
-        let k = (((c - self.volume) / (1.0 - self.volume) * n as f64) as usize).min(n - 1);
+        let mut start = 0;
+        let mut below = self.volume;
+        let mut k = 0;
+        for (g, &(end, p)) in self.groups.iter().enumerate() {
+            if c < below + p || g + 1 == self.groups.len() {
+                let n = end - start;
+                k = start + (((c - below) / p * n as f64) as usize).min(n - 1);
+                break;
+            }
+            below += p;
+            start = end;
+        }
         if k >= self.points.len() {
             let j = k - self.points.len();
             return (self.beams[j].sample(u), Component::Beam(j));
@@ -682,6 +726,7 @@ mod tests {
                 rates: vec![1.5, 0.7],
                 beams: vec![],
                 volume: 1.0 / 3.0,
+                groups: EndpointMixture::one_group(2, 1.0 / 3.0),
                 dimension,
             };
             let n = 400_000;

@@ -199,8 +199,10 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// [`BeamStrategy::PositionAndDirection`], first directions from the vMF pair mixture of
     /// `|Upsilon|^2` (Sec. 6) mixed with the phase function about the beam's axis. Beams always
     /// leave the volume strategy its share `1 / (n + 1)` (`n` components): the beam model is a
-    /// proposal, not the throughput; with more than [`MAX_BEAM_COMPONENTS`] beams it keeps half.
-    /// The weights use the exact density of the whole mixture,
+    /// proposal, not the throughput. With more than [`MAX_BEAM_COMPONENTS`] beams the shares go
+    /// by kind instead: the volume, the points, the sources' beams and the sensors' beams each
+    /// have an equal share, split equally within the kind. The weights use the exact density of
+    /// the whole mixture,
     /// evaluated for both orders of every path ([`Vertex::both_orders`]); unlike point
     /// components, beams do not need reversed paths. Every vertex evaluates every beam's
     /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' sample
@@ -247,55 +249,75 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             near.retain(|(_, _, inside)| *inside);
         }
         let (near, rates): (Vec<_>, Vec<_>) = near.into_iter().map(|(p, r, _)| (p, r)).unzip();
-        let distinct = |list: &[Beam]| {
+        // The distinct beams of `list`, or None past `cap` of them (a camera of millions of
+        // pixels is not scanned to the end).
+        let distinct = |list: &[Beam], cap: usize| {
             let mut unique: Vec<Beam> = vec![];
             for b in list {
                 if !unique.contains(b) {
+                    if unique.len() == cap {
+                        return None;
+                    }
                     unique.push(*b);
                 }
             }
-            unique
+            Some(unique)
         };
-        let mut unique = distinct(&[sources, sensors].concat());
-        if unique.len() > MAX_POSITION_BEAMS {
-            unique = distinct(sources);
-        }
-        if unique.len() > MAX_POSITION_BEAMS || self.beams == BeamStrategy::Off {
-            unique.clear();
-        }
+        let off = self.beams == BeamStrategy::Off;
+        let cap = MAX_POSITION_BEAMS;
+        // The beams: the sources' (distinct) first, then the sensors' not among them.
+        let (unique, n_sources) = match (off, distinct(sources, cap)) {
+            (false, Some(s)) => {
+                let n = s.len();
+                let all = distinct(&[sources, sensors].concat(), cap);
+                (all.unwrap_or(s), n)
+            }
+            _ => (vec![], 0),
+        };
         // Which beams also sample directions: all of them, or past the cap the sources'.
         let directed = if unique.len() <= MAX_BEAM_COMPONENTS {
-            unique.clone()
+            unique.len()
+        } else if n_sources <= MAX_BEAM_COMPONENTS {
+            n_sources
         } else {
-            let s = distinct(sources);
-            if s.len() <= MAX_BEAM_COMPONENTS {
-                s
-            } else {
-                vec![]
-            }
+            0
         };
         let lobes = self.phases[0].amplitude_lobes();
         let directions = self.beams == BeamStrategy::PositionAndDirection;
         let beams: Vec<BeamSampler> = unique
             .iter()
-            .map(|b| BeamSampler::new(b, m, k, lobes, directions && directed.contains(b)))
+            .enumerate()
+            .map(|(i, b)| BeamSampler::new(b, m, k, lobes, directions && i < directed))
             .collect();
-        let n = near.len() + beams.len();
+        let (np, nb) = (near.len(), beams.len());
+        let n = np + nb;
+        // Up to MAX_BEAM_COMPONENTS beams every strategy has an equal share: each beam component
+        // follows its own beam's intensity. A larger set (a camera, a grid of foci) covers a
+        // region rather than matching any one beam (the sum of many pixels' intensities is
+        // flat in depth where each pixel's density falls), and equal shares would starve the
+        // few sources and the volume. There each kind, the volume, the points, the sources'
+        // beams and the sensors' beams, has an equal share, split equally within the kind.
+        let (volume, groups) = if !(others || far || nb > 0) {
+            (0.0, EndpointMixture::one_group(n, 0.0))
+        } else if nb > MAX_BEAM_COMPONENTS {
+            let ends: Vec<usize> = [np, np + n_sources.min(nb), n]
+                .into_iter()
+                .scan(0, |start, end| {
+                    let nonempty = end > *start;
+                    *start = end;
+                    Some(nonempty.then_some(end))
+                })
+                .flatten()
+                .collect();
+            let share = 1.0 / (ends.len() + 1) as f64;
+            (share, ends.into_iter().map(|e| (e, share)).collect())
+        } else {
+            let volume = 1.0 / (n + 1) as f64;
+            (volume, EndpointMixture::one_group(n, volume))
+        };
         self.points = (n > 0).then(|| EndpointMixture {
-            // Up to MAX_BEAM_COMPONENTS beams every strategy has an equal share: each beam
-            // component follows its own beam's intensity. A larger set (a camera, a grid of
-            // foci) covers a region rather than matching any one beam (the sum of many pixels'
-            // intensities is flat in depth where each pixel's density falls), so the volume
-            // keeps half the samples and every weight stays within twice uniform sampling's.
-            volume: if others || far || !beams.is_empty() {
-                if beams.len() > MAX_BEAM_COMPONENTS {
-                    0.5
-                } else {
-                    1.0 / (n + 1) as f64
-                }
-            } else {
-                0.0
-            },
+            volume,
+            groups,
             points: near,
             rates,
             beams,
@@ -525,9 +547,10 @@ mod tests {
     fn a_camera_mixture_weighs_first_vertices_by_its_density() {
         // E[sigma_s / p(x1)] = sigma_s |box| for any density p that covers the box. Past the
         // beam cap (a line camera of 18 pixels and two sources) the density must be the one
-        // sampled: the volume's half share, positions for the pixels, directions for the
-        // sources. Writing the volume's share as 1 / (n + 1) in the density, as below the cap,
-        // moves the mean by a factor of several.
+        // sampled: shares by kind (a third each for the volume, the sources' beams and the
+        // pixels'), positions for the pixels, directions for the sources. Writing the volume's
+        // share as 1 / (n + 1) in the density, as below the cap, moves the mean by a factor of
+        // several, and a beam density 10% high by 5 SE.
         let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 3.0)).unwrap();
         let sigma_s = 1.0 / 3.0;
         let m = HomogeneousBox::new(b, sigma_s, 0.0).unwrap();
@@ -547,7 +570,8 @@ mod tests {
         let t = Tracer::new(&m, &Phase::Isotropic, cfg)
             .unwrap()
             .with_endpoints(&[], &sources, &camera, std::f64::consts::TAU, true);
-        assert_eq!(t.points.as_ref().unwrap().volume, 0.5);
+        let p = t.points.as_ref().unwrap();
+        assert_eq!((p.volume, p.groups.len()), (1.0 / 3.0, 2));
         struct Moments(f64, f64);
         impl VertexSink for Moments {
             fn first(&mut self, _x1: DVec3, _ty: usize, w: f64, _rng: &mut PathRng) {
@@ -682,7 +706,11 @@ mod tests {
         let capped =
             t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &camera, k, true);
         assert_eq!(directed(&capped), (MAX_BEAM_COMPONENTS + 2, 2));
-        assert_eq!(capped.points.as_ref().unwrap().volume, 0.5);
+        // Shares by kind: the volume, the sources' beams, the camera's.
+        let p = capped.points.as_ref().unwrap();
+        let third = 1.0 / 3.0;
+        assert_eq!(p.volume, third);
+        assert_eq!(p.groups, [(2, third), (MAX_BEAM_COMPONENTS + 2, third)]);
         let kept = t(BeamStrategy::PositionAndDirection).with_endpoints(
             &[],
             &src,
