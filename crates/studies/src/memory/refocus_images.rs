@@ -451,7 +451,7 @@ impl RefocusStudy {
 
     /// The rough cost of the images on `threads` threads: seconds and bytes.
     pub fn images_estimate(&self, threads: usize) -> (f64, f64) {
-        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        use speckle_scene::cost::{covariance_seconds, expected_vertices, gaussian_legs};
         let Some(p) = &self.images else {
             return (0.0, 0.0);
         };
@@ -463,14 +463,20 @@ impl RefocusStudy {
         let cases = p.cases.len() as f64;
         let pixels = p.pixels() as f64;
         let pairs = cases * (pixels + 1.0) * nt;
-        let legs = cases * (pixels + 1.0 + 2.0 * nt);
+        // Every endpoint is a Gaussian beam of the single vMF lobe.
+        let legs = gaussian_legs(cases * (pixels + 1.0 + 2.0 * nt), 1);
         let paths = p.file.realizations as f64 * p.file.paths as f64;
         let per_pair =
             covariance_seconds(paths, v, 0.0, 1.0) - covariance_seconds(paths, v, 0.0, 0.0);
         let fields = covariance_seconds(paths, v, legs, 0.0) + pairs * per_pair;
         let check_pairs = (1.0 + p.check_pixels().len() as f64) * nt;
-        let check =
-            cases * covariance_seconds(f.render.paths as f64, v, 2.0 * nt + 6.0, check_pairs);
+        let check = cases
+            * covariance_seconds(
+                f.render.paths as f64,
+                v,
+                gaussian_legs(2.0 * nt + 6.0, 1),
+                check_pairs,
+            );
         let bytes = 16.0 * pairs * (p.file.realizations as f64 + 1.0)
             + 16.0 * p.file.realizations as f64 * cases * pixels;
         ((fields + check) / threads.max(1) as f64, bytes)

@@ -420,14 +420,16 @@ impl TiltShiftStudy {
 
     /// The rough cost on `threads` threads.
     pub fn estimate(&self, threads: usize) -> speckle_scene::cost::Estimate {
-        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        use speckle_scene::cost::{covariance_seconds, expected_vertices, gaussian_legs};
         let f = &self.file;
         let t = 1.0 / f.mean_free_path_um;
         let taus = [t * f.width_um, t * f.width_um, t * f.thickness_um];
         let v = expected_vertices(&taus, 1.0, f.g, speckle_medium::Dimension::Three, u32::MAX);
         let pairs = 2.0 * self.tau.len() as f64;
         let points = (self.theta.len() * self.delta_b.len()) as f64;
-        let seconds = points * covariance_seconds(f.render.paths as f64, v, pairs + 2.0, pairs);
+        // Every endpoint is a Gaussian beam of the single vMF lobe.
+        let legs = gaussian_legs(pairs + 2.0, 1);
+        let seconds = points * covariance_seconds(f.render.paths as f64, v, legs, pairs);
         speckle_scene::cost::Estimate {
             bytes: 16.0 * pairs * pairs * (8.0 + 4.0 * threads as f64) + 1e6,
             memory_field: "n_tau".into(),

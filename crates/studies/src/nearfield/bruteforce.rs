@@ -1014,7 +1014,7 @@ impl BruteForceStudy {
 
     /// The rough cost on `threads` threads.
     pub fn estimate(&self, threads: usize) -> speckle_scene::cost::Estimate {
-        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        use speckle_scene::cost::{covariance_seconds, expected_vertices, gaussian_legs};
         let f = &self.file;
         let r = &f.render;
         let t = 1.0 / f.mean_free_path;
@@ -1026,7 +1026,8 @@ impl BruteForceStudy {
             u32::MAX,
         );
         let (q, p) = (f.nodes as f64, 2.0 * f.nodes as f64);
-        let near = 2.0 * covariance_seconds(r.near_paths as f64, v, 5.0, J as f64);
+        let near =
+            2.0 * covariance_seconds(r.near_paths as f64, v, gaussian_legs(5.0, 1), J as f64);
         // The brute force: Q + P legs and Q P pair products per vertex, then the contraction.
         let biased = r.biased_paths.unwrap_or(r.paths);
         let far = covariance_seconds(

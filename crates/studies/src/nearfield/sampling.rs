@@ -595,7 +595,7 @@ impl SamplingStudy {
 
     /// The rough cost on `threads` threads.
     pub fn estimate(&self, threads: usize) -> speckle_scene::cost::Estimate {
-        use speckle_scene::cost::{covariance_seconds, expected_vertices};
+        use speckle_scene::cost::{covariance_seconds, expected_vertices, gaussian_legs};
         let mut seconds = 0.0;
         let mut vertices: f64 = 0.0;
         let per_case = self.total_paths() as f64 / self.cases.len() as f64;
@@ -610,7 +610,8 @@ impl SamplingStudy {
             let v = expected_vertices(taus, 1.0, c.phase.mean_cosine(), c.dimension, u32::MAX);
             vertices = vertices.max(v);
             let j = if c.reflection { 6.0 } else { 4.0 };
-            seconds += covariance_seconds(per_case, v, 5.0, j);
+            let lobes = c.phase.amplitude_lobes().map_or(1, <[_]>::len);
+            seconds += covariance_seconds(per_case, v, gaussian_legs(5.0, lobes), j);
         }
         speckle_scene::cost::Estimate {
             bytes: 16.0 * 36.0 * (8.0 + 4.0 * threads as f64) + 1e6,
