@@ -202,15 +202,14 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// proposal, not the throughput. With more than [`MAX_BEAM_COMPONENTS`] beams the shares go
     /// by kind instead: the volume, the points, the sources' beams and the sensors' beams each
     /// have an equal share, split equally within the kind. The weights use the exact density of
-    /// the whole mixture,
-    /// evaluated for both orders of every path ([`Vertex::both_orders`]); unlike point
-    /// components, beams do not need reversed paths. Every vertex evaluates every beam's
-    /// density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' sample
+    /// the whole mixture, evaluated for both orders of every path ([`Vertex::both_orders`]);
+    /// unlike point components, beams do not need reversed paths. Every vertex evaluates every
+    /// beam's density: beyond [`MAX_BEAM_COMPONENTS`] distinct beams only the sources' sample
     /// directions (few illuminators, many pixels: the paper samples the first segment for that
     /// reason) and the others only positions, which covers the foci of every pixel of a camera
     /// (leaving them out gave the fields rare paths of large weight near the pixels' foci);
-    /// beyond [`MAX_POSITION_BEAMS`] only the sources' beams are kept, and none beyond that
-    /// many sources.
+    /// beyond [`MAX_POSITION_BEAMS`] only the sources' beams are kept, and none beyond that many
+    /// sources.
     pub fn with_endpoints(
         mut self,
         points: &[DVec3],
