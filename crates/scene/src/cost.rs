@@ -154,7 +154,8 @@ pub fn guard(e: &Estimate, memory: Option<f64>, force: bool) -> Result<(), Scene
 /// Expected vertices of a sub-path in a box of optical extents `taus` (one per axis), albedo
 /// and mean cosine `g`: a diffusion estimate of the steps before the walk leaves the box (the
 /// mean exit time `tau^2 (1 - g) / 4` of a slab of optical thickness `tau` from a uniform
-/// start, `/ 6` in flatland, the axes combined as parallel exits), cut by absorption
+/// start, `/ 6` in flatland, but no less than the ballistic `tau / 2`, which a forward phase
+/// function approaches; the axes combined as parallel exits), cut by absorption
 /// (`1 / (1 - albedo)`) and by `max_vertices`.
 pub fn expected_vertices(
     taus: &[f64],
@@ -170,7 +171,7 @@ pub fn expected_vertices(
     };
     let exit_rate: f64 = taus
         .iter()
-        .map(|t| per_axis / (t * t * (1.0 - g)).max(1e-300))
+        .map(|t| 1.0 / (t * t * (1.0 - g) / per_axis).max(0.5 * t).max(1e-300))
         .sum();
     let absorb = (1.0 - albedo).max(0.0);
     let steps = 1.0 + 1.0 / (exit_rate + absorb);
