@@ -50,12 +50,12 @@ use super::render::slab_tracer;
 use crate::StudyError;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
-use speckle_endpoints::{GaussianBeam, Pair, Sensor, Source};
+use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_estimators::{
     CovarianceOptions, EstimatorError, FieldOptions, Progress, Scene, render_covariance,
     render_fields,
 };
-use speckle_medium::{Aabb, DVec3, HomogeneousBox};
+use speckle_medium::{DVec3, HomogeneousBox};
 use speckle_phase::{Complex64, Phase};
 use speckle_scene::SceneError;
 use speckle_scene::validate::{invalid as bad, positive};
@@ -369,23 +369,8 @@ impl RefocusStudy {
         let f = &self.file;
         let geo = &self.geometry;
         let l = f.thickness_um;
-        let na = f.numerical_aperture;
-        let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
-            field: "width_um".into(),
-            reason: e.to_string(),
-        };
-        let slab = Aabb::centered(DVec3::ZERO, DVec3::new(f.width_um, f.width_um, l))
-            .map_err(medium_error)?;
-        let medium =
-            HomogeneousBox::new(slab, 1.0 / f.mean_free_path_um, 0.0).map_err(medium_error)?;
-        let beam = |x: f64, y: f64, z: f64, tilt: f64| {
-            GaussianBeam::with_numerical_aperture(
-                "numerical_aperture",
-                DVec3::new(x, y, z),
-                DVec3::new(tilt.sin(), 0.0, tilt.cos()),
-                na,
-            )
-        };
+        let medium = geo.slab()?;
+        let beam = |x: f64, y: f64, z: f64, tilt: f64| geo.beam(DVec3::new(x, y, z), tilt);
         let (mut sources, mut sensors, mut pairs, mut layout) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let nt = geo.tau.len();

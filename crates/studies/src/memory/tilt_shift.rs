@@ -342,6 +342,33 @@ impl TiltShiftStudy {
         Ok(Phase::Vmf(Arc::new(m)))
     }
 
+    /// The slab: `width_um x width_um x thickness_um` centred on the origin (faces `a` and `b`
+    /// at `z = -+L/2`), lossless, of mean free path `mean_free_path_um`.
+    pub fn slab(&self) -> Result<HomogeneousBox, EstimatorError> {
+        let f = &self.file;
+        let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
+            field: "width_um".into(),
+            reason: e.to_string(),
+        };
+        let slab = Aabb::centered(
+            DVec3::ZERO,
+            DVec3::new(f.width_um, f.width_um, f.thickness_um),
+        )
+        .map_err(medium_error)?;
+        HomogeneousBox::new(slab, 1.0 / f.mean_free_path_um, 0.0).map_err(medium_error)
+    }
+
+    /// A Gaussian beam of the study's numerical aperture focused at `focus`, its axis tilted by
+    /// `tilt` (radians) from +z towards +x.
+    pub fn beam(&self, focus: DVec3, tilt: f64) -> Result<GaussianBeam, EstimatorError> {
+        Ok(GaussianBeam::with_numerical_aperture(
+            "numerical_aperture",
+            focus,
+            DVec3::new(tilt.sin(), 0.0, tilt.cos()),
+            self.file.numerical_aperture,
+        )?)
+    }
+
     /// The input shift `Delta_a = Delta_b - L theta` (the Dirac delta of Eq. 50).
     pub fn delta_a(&self, delta_b: f64, theta: f64) -> f64 {
         delta_b - self.file.thickness_um * theta
@@ -356,25 +383,9 @@ impl TiltShiftStudy {
     ) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
         let f = &self.file;
         let l = f.thickness_um;
-        let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
-            field: "width_um".into(),
-            reason: e.to_string(),
-        };
-        let slab = Aabb::centered(DVec3::ZERO, DVec3::new(f.width_um, f.width_um, l))
-            .map_err(medium_error)?;
-        let medium =
-            HomogeneousBox::new(slab, 1.0 / f.mean_free_path_um, 0.0).map_err(medium_error)?;
+        let medium = self.slab()?;
         let da = self.delta_a(delta_b, theta);
-        let na = f.numerical_aperture;
-        let beam = |s: f64| {
-            let t = s * theta / 2.0;
-            GaussianBeam::with_numerical_aperture(
-                "numerical_aperture",
-                DVec3::new(s * da / 2.0, 0.0, -l / 2.0),
-                DVec3::new(t.sin(), 0.0, t.cos()),
-                na,
-            )
-        };
+        let beam = |s: f64| self.beam(DVec3::new(s * da / 2.0, 0.0, -l / 2.0), s * theta / 2.0);
         let sources = vec![
             Source::GaussianBeam(beam(-1.0)?),
             Source::GaussianBeam(beam(1.0)?),
@@ -382,12 +393,8 @@ impl TiltShiftStudy {
         let mut sensors = Vec::with_capacity(2 * self.tau.len());
         for s in [-1.0, 1.0] {
             for &t in &self.tau {
-                sensors.push(Sensor::GaussianBeam(GaussianBeam::with_numerical_aperture(
-                    "numerical_aperture",
-                    DVec3::new(t + s * delta_b / 2.0, 0.0, l / 2.0),
-                    DVec3::Z,
-                    na,
-                )?));
+                let focus = DVec3::new(t + s * delta_b / 2.0, 0.0, l / 2.0);
+                sensors.push(Sensor::GaussianBeam(self.beam(focus, 0.0)?));
             }
         }
         let n = self.tau.len();
