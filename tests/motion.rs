@@ -319,6 +319,35 @@ fn powers_of_regular_lags_equal_the_direct_factors() {
     }
 }
 
+/// The diagonal entries' own path (`Entries::Diagonal` without drift: the Brownian exponents
+/// formed per source, sensor and path) against the general one (the same entries as a list),
+/// bitwise, far-field and point endpoints, with and without reversed paths.
+#[test]
+fn diagonal_entries_match_the_general_path_bitwise() {
+    let model = MotionModel::uniform(Motion::brownian(0.02).unwrap());
+    for scene in [far_scene(), point_scene()] {
+        let list = Entries::List((0..scene.len()).map(|j| (j, j)).collect());
+        for coherence in [Coherence::ForwardAndReversed, Coherence::ForwardOnly] {
+            let o = opts(701, 23, coherence);
+            let lags = [0.0, 0.4, 0.8, 1.2, 2.0];
+            let a = render_correlation(&scene, &model, &lags, &Entries::Diagonal, &o, &NoProgress)
+                .unwrap();
+            let b = render_correlation(&scene, &model, &lags, &list, &o, &NoProgress).unwrap();
+            for l in 1..lags.len() {
+                for j in 0..scene.len() {
+                    let (x, y) = (a.total(l, j), b.total(l, j));
+                    assert_eq!(
+                        (x.0.re.to_bits(), x.0.im.to_bits(), x.1.re.to_bits()),
+                        (y.0.re.to_bits(), y.0.im.to_bits(), y.1.re.to_bits()),
+                        "lag {l}, entry {j}: {x:?} vs {y:?}"
+                    );
+                }
+            }
+            assert!(a.total(4, 0).0.re < a.total(1, 0).0.re);
+        }
+    }
+}
+
 /// The smallest eigenvalue of the Hermitian matrix `m` (n x n, row-major).
 fn min_eigenvalue(m: &[Complex64], n: usize) -> f64 {
     let a = faer::Mat::<faer::c64>::from_fn(n, n, |r, c| {

@@ -175,6 +175,18 @@ struct Scratch<'s, M, P> {
     buf: Vec<Complex64>,
     /// The batch's sums of the lags taken by [`Powers`]: single and multiple scattering.
     table: Option<[PowerSums; 2]>,
+    /// A vertex's terms for [`PowerSums::add`]: entry, weighted amplitude product, exponent of
+    /// the power base.
+    terms: Vec<(usize, Complex64, f64)>,
+    /// Diagonal entries without drift ([`CorrelationSink::diagonal_powers`]): the first
+    /// vertex's Brownian exponents of the path, forward per source, reversed per sensor and
+    /// crossed per entry (set at its second vertex), and the last vertex's, per sensor,
+    /// source and entry.
+    first_fwd: Vec<f64>,
+    first_rev: Vec<f64>,
+    first_cross: Vec<f64>,
+    last_fwd: Vec<f64>,
+    last_rev: Vec<f64>,
     /// The sampled displacements' stream of the current path, and the standard normal vectors
     /// of its first and current vertices.
     brown: PathRng,
@@ -271,9 +283,8 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
 
     /// [`Self::push_lag`] of every non-zero lag at once by [`Powers`] (no drift: lag-independent
     /// terms): adds `w sum prod exp(-k^2 |t| (y + expo))` to the batch's sums of part `half`
-    /// (0: single, 1: multiple scattering) of every lag, `y` the interior exponent. Term combinations of one entry with the same exponent (the two
-    /// cross terms of an entry whose copies share their ends, whose sum is real) are added
-    /// before their powers are formed.
+    /// (0: single, 1: multiple scattering) of every lag, `y` the interior exponent, with the
+    /// term combinations merged by [`merge_terms`].
     fn push_powers(&mut self, half: usize, w: f64, y: f64) {
         let (Some(p), Some(tables)) = (&self.plan.powers, &mut self.s.table) else {
             return;
@@ -281,26 +292,91 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         let table = &mut tables[half];
         let c = self.plan.k * self.plan.k * p.delta;
         let n = self.plan.combos;
+        let out = &mut self.s.terms;
+        out.clear();
         for e in 0..self.plan.local.len() {
-            let mut terms = [(Complex64::ZERO, 0.0); 4];
-            let mut len = 0;
-            for i in e * n..(e + 1) * n {
-                let (pr, a) = (self.s.prod[i], self.s.expo[i]);
-                if pr == Complex64::ZERO {
-                    continue;
-                }
-                match terms[..len].iter_mut().find(|t| t.1 == a) {
-                    Some(t) => t.0 += pr,
-                    None => {
-                        terms[len] = (pr, a);
-                        len += 1;
-                    }
-                }
+            let mut combos = [(Complex64::ZERO, 0.0); 4];
+            for (k, i) in (e * n..(e + 1) * n).enumerate() {
+                combos[k] = (self.s.prod[i], self.s.expo[i]);
             }
-            for &(pr, a) in &terms[..len] {
-                table.add(e, w * pr, (-c * (y + a)).exp());
+            merge_terms(out, e, w, c, y, &combos[..n]);
+        }
+        table.add(out);
+    }
+
+    /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
+    /// drift or sampled displacements, whose two copies are one pair with the same ends. The
+    /// Brownian exponent of a term combination is a first vertex's part, which depends on the
+    /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
+    /// plus the last vertex's: so the parts are formed once per path, source or sensor
+    /// (`first_*`, `last_*`) rather than once per entry and combination. The terms, their
+    /// values and their order are those of the general path (`tests/motion.rs` compares the
+    /// two bitwise).
+    fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
+        use speckle_motion::{first_transfer, last_transfer, sensor_gradient, source_gradient};
+        let Scratch {
+            conn,
+            state,
+            table,
+            terms: out,
+            first_fwd,
+            first_rev,
+            first_cross,
+            last_fwd,
+            last_rev,
+            ..
+        } = &mut *self.s;
+        let (Some(p), Some(tables)) = (&self.plan.powers, table) else {
+            return;
+        };
+        let c = self.plan.k * self.plan.k * p.delta;
+        let (d1, db, w1) = (state.first.diffusion, state.here.diffusion, state.w1);
+        let reversed = self.coherence == Coherence::ForwardAndReversed;
+        let ends = conn.ends();
+        let (n_src, n_sen) = (ends.in1.len(), ends.out1.len());
+        // Leg gradients: forward at x1 and x_b, reversed at x1 and x_b.
+        let g_f1 = |i: usize| source_gradient(ends.in1.dir(i));
+        let g_fb = |v: usize| sensor_gradient(ends.out_b.dir(v));
+        let g_r1 = |v: usize| sensor_gradient(ends.out1.dir(v));
+        let g_rb = |i: usize| source_gradient(ends.in_b.dir(i));
+        let first = |g1, g2| d1 * first_transfer(w1, g1, g2).length_squared();
+        let last = |g1, g2| db * last_transfer(w_in, g1, g2).length_squared();
+        if second {
+            first_fwd.clear();
+            first_fwd.extend((0..n_src).map(|i| first(g_f1(i), g_f1(i))));
+            first_rev.clear();
+            first_cross.clear();
+            if reversed {
+                first_rev.extend((0..n_sen).map(|v| first(g_r1(v), g_r1(v))));
+                let local = self.plan.local.iter();
+                first_cross.extend(local.map(|en| first(g_f1(en.s1), g_r1(en.v1))));
             }
         }
+        last_fwd.clear();
+        last_fwd.extend((0..n_sen).map(|v| last(g_fb(v), g_fb(v))));
+        last_rev.clear();
+        if reversed {
+            last_rev.extend((0..n_src).map(|i| last(g_rb(i), g_rb(i))));
+        }
+        out.clear();
+        for (e, en) in self.plan.local.iter().enumerate() {
+            let (i, v) = (en.s1, en.v1);
+            let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
+            let mut combos = [(Complex64::ZERO, 0.0); 4];
+            combos[0] = (pf * pf.conj(), first_fwd[i] + last_fwd[v]);
+            let len = if reversed {
+                let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
+                let cross = first_cross[e] + last(g_fb(v), g_rb(i));
+                combos[1] = (pf * pr.conj(), cross);
+                combos[2] = (pr * pf.conj(), cross);
+                combos[3] = (pr * pr.conj(), first_rev[v] + last_rev[i]);
+                4
+            } else {
+                1
+            };
+            merge_terms(out, e, w, c, y, &combos[..len]);
+        }
+        tables[1].add(out);
     }
 
     /// The ends of both copies of lag `l`.
@@ -346,7 +422,12 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                 )
             };
             let (f1, g1) = f(a, en.s1, en.v1);
-            let (f2, g2) = f(b, en.s2, en.v2);
+            // (The copies of a diagonal entry with shared ends are the same term.)
+            let (f2, g2) = if std::ptr::eq(a, b) && (en.s1, en.v1) == (en.s2, en.v2) {
+                (f1, g1)
+            } else {
+                f(b, en.s2, en.v2)
+            };
             let q = speckle_motion::single_transfer(g1, g2);
             s.prod[e * n] = f1 * f2.conj();
             s.expo[e * n] = if sampled {
@@ -530,9 +611,13 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 }
             }
             if let Some(&(l, _)) = p.order.first() {
-                self.vertex_terms(l, w_in);
                 let y = self.s.state.y;
-                self.push_powers(1, weight, y);
+                if self.plan.mode == Mode::Diagonal && !self.plan.sampled {
+                    self.diagonal_powers(w_in, weight, y, v.index == 2);
+                } else {
+                    self.vertex_terms(l, w_in);
+                    self.push_powers(1, weight, y);
+                }
             }
             return;
         }
@@ -565,6 +650,38 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
     #[inline]
     fn keep_going(&mut self) -> bool {
         !self.poll.cancelled()
+    }
+}
+
+/// Appends the terms `(e, w pr, c (y + a))` of entry `e`'s term combinations `(pr, a)`
+/// (amplitude product, end exponent), skipping zero products and adding first the products of
+/// combinations with the same exponent (the two cross terms of an entry whose copies share
+/// their ends, whose sum is real), in the order of first appearance.
+#[inline(always)]
+fn merge_terms(
+    out: &mut Vec<(usize, Complex64, f64)>,
+    e: usize,
+    w: f64,
+    c: f64,
+    y: f64,
+    combos: &[(Complex64, f64)],
+) {
+    let mut terms = [(Complex64::ZERO, 0.0); 4];
+    let mut len = 0;
+    for &(pr, a) in combos {
+        if pr == Complex64::ZERO {
+            continue;
+        }
+        match terms[..len].iter_mut().find(|t| t.1 == a) {
+            Some(t) => t.0 += pr,
+            None => {
+                terms[len] = (pr, a);
+                len += 1;
+            }
+        }
+    }
+    for &(pr, a) in &terms[..len] {
+        out.push((e, w * pr, c * (y + a)));
     }
 }
 
@@ -737,6 +854,12 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
                 .powers
                 .as_ref()
                 .map(|p| [PowerSums::new(p, e_len), PowerSums::new(p, e_len)]),
+            terms: Vec::with_capacity(4 * e_len),
+            first_fwd: Vec::new(),
+            first_rev: Vec::new(),
+            first_cross: Vec::new(),
+            last_fwd: Vec::new(),
+            last_rev: Vec::new(),
             inside: vec![true; lags.len()],
             brown: PathRng::new(plan.key, 0),
             z1: DVec3::ZERO,
