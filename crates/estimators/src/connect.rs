@@ -356,6 +356,23 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         }
     }
 
+    /// The amplitude `s(i . v)` of single scattering by a particle of type `ty` between the
+    /// leg directions `ds`, `dv` of local pair `pair`: the far-field table's value where there
+    /// is one (the same value: it depends on the pair only), else computed.
+    #[inline]
+    pub(crate) fn first_amplitude(
+        &self,
+        ty: usize,
+        pair: usize,
+        ds: DVec3,
+        dv: DVec3,
+    ) -> Complex64 {
+        match self.first_amp.get(ty) {
+            Some(t) => t.get(pair),
+            None => self.scene.phases()[ty].amplitude_between(ds, dv),
+        }
+    }
+
     /// The current path's legs and scattering values.
     pub(crate) fn ends(&self) -> &Ends {
         &self.ends

@@ -403,8 +403,9 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         let (a, b) = Self::ends_of(&s.conn, &s.ends, self.plan.displaced, l);
         let (sources, sensors) = (s.conn.sources(), s.conn.sensors());
         let sampled = self.plan.sampled;
-        for (e, en) in self.plan.local.iter().enumerate() {
-            let f = |ends: &Ends, src: usize, sen: usize| {
+        let (conn, ty) = (&s.conn, self.type1);
+        for (e, (en, &(j, k))) in self.plan.local.iter().zip(&self.plan.entries).enumerate() {
+            let f = |ends: &Ends, src: usize, sen: usize, pair: usize| {
                 let (in1, out1) = (&ends.in1, &ends.out1);
                 if sampled {
                     // Aperture integrals (Eqs. 15-18) at the sampled displacements: no
@@ -415,18 +416,18 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                     );
                 }
                 let (ds, dv) = (in1.dir(src), out1.dir(sen));
-                let amp = in1.amp(src) * out1.amp(sen) * phase.amplitude_between(ds, dv);
+                let amp = in1.amp(src) * out1.amp(sen) * conn.first_amplitude(ty, pair, ds, dv);
                 (
                     amp,
                     speckle_motion::source_gradient(ds) + speckle_motion::sensor_gradient(dv),
                 )
             };
-            let (f1, g1) = f(a, en.s1, en.v1);
+            let (f1, g1) = f(a, en.s1, en.v1, j);
             // (The copies of a diagonal entry with shared ends are the same term.)
             let (f2, g2) = if std::ptr::eq(a, b) && (en.s1, en.v1) == (en.s2, en.v2) {
                 (f1, g1)
             } else {
-                f(b, en.s2, en.v2)
+                f(b, en.s2, en.v2, k)
             };
             let q = speckle_motion::single_transfer(g1, g2);
             s.prod[e * n] = f1 * f2.conj();
