@@ -301,7 +301,13 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             }
             merge_terms(out, e, w, c, y, &combos[..n]);
         }
-        table.add(out);
+        if half == 0 {
+            // Single scattering: between far-field endpoints in a homogeneous medium every
+            // path of an entry has the same exponent.
+            table.add_held(out);
+        } else {
+            table.add(out);
+        }
     }
 
     /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
@@ -362,21 +368,63 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         for (e, en) in self.plan.local.iter().enumerate() {
             let (i, v) = (en.s1, en.v1);
             let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
-            let mut combos = [(Complex64::ZERO, 0.0); 4];
-            combos[0] = (pf * pf.conj(), first_fwd[i] + last_fwd[v]);
-            let len = if reversed {
-                let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
-                let cross = first_cross[e] + last(g_fb(v), g_rb(i));
-                combos[1] = (pf * pr.conj(), cross);
-                combos[2] = (pr * pf.conj(), cross);
-                combos[3] = (pr * pr.conj(), first_rev[v] + last_rev[i]);
-                4
+            let ff = (pf * pf.conj(), first_fwd[i] + last_fwd[v]);
+            if !reversed {
+                merge_terms(out, e, w, c, y, &[ff]);
+                continue;
+            }
+            let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
+            let cross = first_cross[e] + last(g_fb(v), g_rb(i));
+            let combos = [
+                ff,
+                (pf * pr.conj(), cross),
+                (pr * pf.conj(), cross),
+                (pr * pr.conj(), first_rev[v] + last_rev[i]),
+            ];
+            let distinct = ff.1 != cross && ff.1 != combos[3].1 && cross != combos[3].1;
+            if distinct && combos.iter().all(|t| t.0 != Complex64::ZERO) {
+                // What `merge_terms` gives then, without its search: the cross terms added.
+                let [(a, x), (b, y_x), (d, _), (r, z)] = combos;
+                out.push((e, w * a, c * (y + x)));
+                out.push((e, w * (b + d), c * (y + y_x)));
+                out.push((e, w * r, c * (y + z)));
             } else {
-                1
-            };
-            merge_terms(out, e, w, c, y, &combos[..len]);
+                merge_terms(out, e, w, c, y, &combos);
+            }
         }
         tables[1].add(out);
+    }
+
+    /// [`Self::single_terms`] and [`Self::push_powers`] of single scattering at once for
+    /// diagonal entries without drift or sampled displacements (the same terms: one per entry,
+    /// both copies the same pair with the same ends).
+    fn diagonal_single(&mut self, w: f64) {
+        use speckle_motion::{sensor_gradient, single_transfer, source_gradient};
+        let Scratch {
+            conn,
+            state,
+            table,
+            terms: out,
+            ..
+        } = &mut *self.s;
+        let (Some(p), Some(tables)) = (&self.plan.powers, table) else {
+            return;
+        };
+        let c = self.plan.k * self.plan.k * p.delta;
+        let d1 = state.first.diffusion;
+        let ends = conn.ends();
+        out.clear();
+        let pairs = self.plan.local.iter().zip(&self.plan.entries);
+        for (e, (en, &(j, _))) in pairs.enumerate() {
+            let (i, v) = (en.s1, en.v1);
+            let (ds, dv) = (ends.in1.dir(i), ends.out1.dir(v));
+            let f =
+                ends.in1.amp(i) * ends.out1.amp(v) * conn.first_amplitude(self.type1, j, ds, dv);
+            let g = source_gradient(ds) + sensor_gradient(dv);
+            let a = d1 * single_transfer(g, g).length_squared();
+            merge_terms(out, e, w, c, 0.0, &[(f * f.conj(), a)]);
+        }
+        tables[0].add_held(out);
     }
 
     /// The ends of both copies of lag `l`.
@@ -544,8 +592,12 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 }
             }
             if let Some(&(l, _)) = p.order.first() {
-                self.single_terms(l);
-                self.push_powers(0, weight, 0.0);
+                if self.plan.mode == Mode::Diagonal && !self.plan.sampled {
+                    self.diagonal_single(weight);
+                } else {
+                    self.single_terms(l);
+                    self.push_powers(0, weight, 0.0);
+                }
             }
             return;
         }

@@ -96,6 +96,11 @@ pub(crate) struct PowerSums {
     row: usize,
     re: Vec<f64>,
     im: Vec<f64>,
+    /// Per entry, terms held back by [`Self::add_held`]: their common exponent and the sum of
+    /// their weights (`None` when nothing is held).
+    held: Vec<Option<(f64, Complex64)>>,
+    /// Scratch: held terms on their way to [`Self::add`].
+    release: Vec<(usize, Complex64, f64)>,
     /// Whether anything was added since the last flush.
     touched: bool,
     /// The instruction set the loops over the lags are compiled for (detected at run time:
@@ -127,6 +132,8 @@ impl PowerSums {
             row,
             re: vec![0.0; entries * row],
             im: vec![0.0; entries * row],
+            held: vec![None; entries],
+            release: Vec::new(),
             touched: false,
             arch: pulp::Arch::new(),
         }
@@ -143,8 +150,33 @@ impl PowerSums {
         arch.dispatch(AddLags { sums: self, terms });
     }
 
+    /// [`Self::add`] for terms whose exponent often repeats within an entry (single scattering
+    /// between far-field endpoints in a homogeneous medium: the same for every path): a term
+    /// whose exponent equals the one held for its entry adds its weight to the held sum, so
+    /// that the powers are formed once for all of them (`(sum z) r^m`, equal to `sum z r^m` to
+    /// rounding); any other term releases the held one and is held in its place. What is held
+    /// is added at the next [`Self::flush`].
+    pub fn add_held(&mut self, terms: &[(usize, Complex64, f64)]) {
+        let mut release = std::mem::take(&mut self.release);
+        release.clear();
+        for &(e, z, x) in terms {
+            match &mut self.held[e] {
+                Some((held, sum)) if *held == x => *sum += z,
+                slot => {
+                    if let Some((held, sum)) = slot.replace((x, z)) {
+                        release.push((e, sum, held));
+                    }
+                }
+            }
+        }
+        self.touched = true;
+        self.add(&release);
+        self.release = release;
+    }
+
     /// Adds the sums of lag `l` (at position `k`) to `sums[part(l)]`, for every lag, and
-    /// empties them; `buf` holds one value per entry.
+    /// empties them (with the terms held by [`Self::add_held`]); `buf` holds one value per
+    /// entry.
     pub fn flush(
         &mut self,
         sums: &mut [BatchSum],
@@ -154,6 +186,15 @@ impl PowerSums {
         if !self.touched {
             return;
         }
+        let mut release = std::mem::take(&mut self.release);
+        release.clear();
+        for (e, h) in self.held.iter_mut().enumerate() {
+            if let Some((x, z)) = h.take() {
+                release.push((e, z, x));
+            }
+        }
+        self.add(&release);
+        self.release = release;
         let n = self.row;
         for (k, &l) in self.lags.iter().enumerate() {
             for (e, b) in buf.iter_mut().enumerate() {
@@ -270,30 +311,24 @@ impl pulp::WithSimd for AddLags<'_> {
         while k < terms.len() {
             // The consecutive terms of one entry (up to four), added chunk by chunk together.
             let e = terms[k].0;
-            let mut z = [Complex64::ZERO; 4];
-            let mut r = [0.0; 4];
-            let mut n = 0;
-            while k < terms.len() && terms[k].0 == e && n < 4 {
-                if terms[k].1 != Complex64::ZERO {
-                    (z[n], r[n]) = (terms[k].1, t.rs[k]);
-                    n += 1;
-                }
-                k += 1;
-            }
+            let n = terms[k..].iter().take(4).take_while(|t| t.0 == e).count();
+            let group = k..k + n;
+            k += n;
             if !t.contiguous {
-                for i in 0..n {
-                    t.add_gathered(simd, e, z[i], r[i]);
+                for i in group {
+                    t.add_gathered(simd, e, terms[i].1, t.rs[i]);
                 }
                 continue;
             }
-            let take = |i| (e, z[i], r[i]);
+            let rs = std::mem::take(&mut t.rs);
+            let (ts, rs_) = (&terms[group.clone()], &rs[group]);
             match n {
-                1 => t.add_regular(simd, [take(0)]),
-                2 => t.add_regular(simd, [take(0), take(1)]),
-                3 => t.add_regular(simd, [take(0), take(1), take(2)]),
-                4 => t.add_regular(simd, [take(0), take(1), take(2), take(3)]),
-                _ => {}
+                1 => t.add_regular::<S, 1>(simd, ts, rs_),
+                2 => t.add_regular::<S, 2>(simd, ts, rs_),
+                3 => t.add_regular::<S, 3>(simd, ts, rs_),
+                _ => t.add_regular::<S, 4>(simd, ts, rs_),
             }
+            t.rs = rs;
         }
     }
 }
@@ -308,13 +343,16 @@ impl PowerSums {
     fn add_regular<S: pulp::Simd, const N: usize>(
         &mut self,
         simd: S,
-        terms: [(usize, Complex64, f64); N],
+        terms: &[(usize, Complex64, f64)],
+        rs: &[f64],
     ) {
+        let terms: &[_; N] = terms.try_into().expect("N terms");
+        let rs: &[f64; N] = rs.try_into().expect("N bases");
         let chunks = self.row / 8;
         let mut zq = [[[0.0; 8]; 2]; N];
         let mut ms = [[0.0; 8]; N];
         let mut whole = chunks <= 8;
-        for (i, &(_, z, r)) in terms.iter().enumerate() {
+        for (i, (&(_, z, _), &r)) in terms.iter().zip(rs).enumerate() {
             let q = first_eight(r);
             let e8 = first_eight(q[7]);
             ms[i] = [1.0, e8[0], e8[1], e8[2], e8[3], e8[4], e8[5], e8[6]];
@@ -324,7 +362,7 @@ impl PowerSums {
             }
         }
         if !whole {
-            for (e, z, r) in terms {
+            for (&(e, z, _), &r) in terms.iter().zip(rs) {
                 self.add_one(simd, e, z, r);
             }
             return;
@@ -341,7 +379,8 @@ impl PowerSums {
                     let mut acc = *s;
                     for i in 0..N {
                         let zq = S::as_simd_f64s(&zq[i][p]).0[v];
-                        acc = simd.add_f64s(acc, simd.mul_f64s(zq, simd.splat_f64s(ms[i][j])));
+                        let m = simd.splat_f64s(ms[i][j]);
+                        acc = simd.add_f64s(acc, simd.mul_f64s(zq, m));
                     }
                     *s = acc;
                 }
@@ -377,6 +416,9 @@ impl PowerSums {
     /// lags' steps.
     #[inline(always)]
     fn add_gathered<S: pulp::Simd>(&mut self, simd: S, e: usize, z: Complex64, r: f64) {
+        if z == Complex64::ZERO {
+            return;
+        }
         let q = first_eight(r);
         let chunks = multipliers(&mut self.ms, q[0], q[7]).min(self.pw.len() / 8);
         let (qv, _) = S::as_simd_f64s(&q);
