@@ -554,6 +554,54 @@ mod tests {
         assert_eq!(exp_neg(f64::INFINITY), 0.0);
     }
 
+    /// Terms held while their exponent repeats ([`PowerSums::add_held`]) give the sums of
+    /// [`PowerSums::add`] to rounding, and a flush releases what is held.
+    #[test]
+    fn held_terms_give_the_same_sums() {
+        let lags: Vec<f64> = (0..40).map(|m| m as f64 * 0.1).collect();
+        let p = Powers::of(&lags).unwrap();
+        let terms: Vec<_> = (0..30)
+            .map(|i| {
+                let x = if i % 7 == 6 {
+                    0.3
+                } else {
+                    0.01 * (1 + i % 2) as f64
+                };
+                (i % 2, Complex64::new(1.0 + i as f64, 0.1 * i as f64), x)
+            })
+            .collect();
+        let flushed = |held: bool| {
+            let mut s = PowerSums::new(&p, 2);
+            for chunk in terms.chunks(4) {
+                if held {
+                    s.add_held(chunk);
+                } else {
+                    s.add(chunk);
+                }
+            }
+            let mut sums = vec![
+                BatchSum::new(
+                    speckle_stats::Layout::GeneralDiagonal,
+                    2,
+                    &Default::default()
+                );
+                lags.len()
+            ];
+            s.flush(&mut sums, |l| l, &mut [Complex64::ZERO; 2]);
+            sums.into_iter().map(|b| b.finish()).collect::<Vec<_>>()
+        };
+        let (a, b) = (flushed(true), flushed(false));
+        for (l, (x, y)) in a.iter().zip(&b).enumerate().skip(1) {
+            for e in 0..2 {
+                assert!(y[e].norm() > 1.0, "lag {l}");
+                assert!(
+                    (x[e] - y[e]).norm() <= 1e-14 * y[e].norm(),
+                    "lag {l}: {x:?} {y:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn irregular_lags_take_no_powers() {
         assert!(Powers::of(&[0.1, 0.1 * std::f64::consts::PI]).is_none());
