@@ -134,6 +134,8 @@ struct Plan {
     zero: Vec<bool>,
     /// Whether any lag is.
     any_zero: bool,
+    /// The lags that are exactly zero.
+    zero_lags: Vec<usize>,
     entries: Vec<(usize, usize)>,
     local: Vec<Entry>,
     mode: Mode,
@@ -586,10 +588,8 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             }
         }
         if let Some(p) = &self.plan.powers {
-            for l in 0..self.plan.lags.len() {
-                if self.plan.zero[l] {
-                    self.push_static(2 * l, weight);
-                }
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l, weight);
             }
             if let Some(&(l, _)) = p.order.first() {
                 if self.plan.mode == Mode::Diagonal && !self.plan.sampled {
@@ -658,10 +658,8 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         }
         let weight = v.weight_for(self.coherence);
         if let Some(p) = &self.plan.powers {
-            for l in 0..self.plan.lags.len() {
-                if self.plan.zero[l] {
-                    self.push_static(2 * l + 1, weight);
-                }
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l + 1, weight);
             }
             if let Some(&(l, _)) = p.order.first() {
                 let y = self.s.state.y;
@@ -860,6 +858,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         lags: lags.to_vec(),
         zero: lags.iter().map(|t| *t == 0.0).collect(),
         any_zero: lags.contains(&0.0),
+        zero_lags: (0..lags.len()).filter(|&l| lags[l] == 0.0).collect(),
         entries: list,
         local,
         mode,

@@ -101,6 +101,12 @@ pub(crate) struct PowerSums {
     held: Vec<Option<(f64, Complex64)>>,
     /// Scratch: held terms on their way to [`Self::add`].
     release: Vec<(usize, Complex64, f64)>,
+    /// The least base `r` whose powers [`Self::add_regular`] forms in registers: rows of at
+    /// most 64 lags, and no chunk underflowing (its leading power `r^(8 j + 1)` at least
+    /// [`Self::TINY`], with a margin for the powers' rounding); below it (or for longer rows,
+    /// infinite) the terms go one at a time through [`Self::add_one`], which gives the same
+    /// sums for the chunks that do not underflow.
+    whole: f64,
     /// Whether anything was added since the last flush.
     touched: bool,
     /// The instruction set the loops over the lags are compiled for (detected at run time:
@@ -121,6 +127,13 @@ impl PowerSums {
         let max = steps.last().copied().unwrap_or(0);
         let n = lags.len();
         let row = n.div_ceil(8) * 8;
+        let chunks = row / 8;
+        let whole = if chunks <= 8 {
+            let lead = (8 * chunks.max(1) - 7) as f64;
+            Self::TINY.powf(1.0 / lead) * 1.001
+        } else {
+            f64::INFINITY
+        };
         Self {
             lags,
             steps,
@@ -134,6 +147,7 @@ impl PowerSums {
             im: vec![0.0; entries * row],
             held: vec![None; entries],
             release: Vec::new(),
+            whole,
             touched: false,
             arch: pulp::Arch::new(),
         }
@@ -348,24 +362,21 @@ impl PowerSums {
     ) {
         let terms: &[_; N] = terms.try_into().expect("N terms");
         let rs: &[f64; N] = rs.try_into().expect("N bases");
-        let chunks = self.row / 8;
-        let mut zq = [[[0.0; 8]; 2]; N];
-        let mut ms = [[0.0; 8]; N];
-        let mut whole = chunks <= 8;
-        for (i, (&(_, z, _), &r)) in terms.iter().zip(rs).enumerate() {
-            let q = first_eight(r);
-            let e8 = first_eight(q[7]);
-            ms[i] = [1.0, e8[0], e8[1], e8[2], e8[3], e8[4], e8[5], e8[6]];
-            whole &= chunks <= 8 && q[0] * ms[i][chunks.clamp(1, 8) - 1] >= Self::TINY;
-            for (part, a) in zq[i].iter_mut().zip([z.re, z.im]) {
-                *part = q.map(|x| a * x);
-            }
-        }
-        if !whole {
+        if rs.iter().any(|&r| r < self.whole) {
             for (&(e, z, _), &r) in terms.iter().zip(rs) {
                 self.add_one(simd, e, z, r);
             }
             return;
+        }
+        let mut zq = [[[0.0; 8]; 2]; N];
+        let mut ms = [[0.0; 8]; N];
+        for (i, (&(_, z, _), &r)) in terms.iter().zip(rs).enumerate() {
+            let q = first_eight(r);
+            let e8 = first_eight(q[7]);
+            ms[i] = [1.0, e8[0], e8[1], e8[2], e8[3], e8[4], e8[5], e8[6]];
+            for (part, a) in zq[i].iter_mut().zip([z.re, z.im]) {
+                *part = q.map(|x| a * x);
+            }
         }
         let e = terms[0].0;
         let rows = e * self.row..(e + 1) * self.row;
@@ -465,6 +476,9 @@ mod tests {
     fn powers_are_the_exponentials_to_rounding_and_stop_before_subnormals() {
         for (lags, x) in [
             ((1..=64).map(|m| m as f64 * 0.05).collect::<Vec<_>>(), 0.03),
+            // Bases either side of the least whose 57th power is above `TINY` (`1.2e-5`).
+            ((1..=64).map(|m| m as f64 * 0.05).collect(), 10.9),
+            ((1..=64).map(|m| m as f64 * 0.05).collect(), 11.7),
             (vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4], 1.2),
             (vec![0.1, 0.7, 0.3], 69.0),
             (vec![0.0, 2e-7, 5e-7, 1e-6, 1.5e-5], 1e-3),
@@ -491,11 +505,12 @@ mod tests {
                     Complex64::new(2.0, -1.0) * (-m as f64 * x).exp()
                 };
                 assert_eq!(got[0], Complex64::ZERO);
-                // An ulp of `r` is `m` ulps of `r^m`, and the products add a few.
+                // An ulp of `r` is `m` ulps of `r^m`, and the products add a few; the
+                // reference `exp(-m x)` carries the rounding of `m x` (relative `m x eps / 2`).
                 let tol = if want.norm() < 1e-250 {
                     1e-250
                 } else {
-                    (m + 16) as f64 * 2.0 * f64::EPSILON * want.norm()
+                    ((m + 16) as f64 * 2.0 + m as f64 * x / 2.0) * f64::EPSILON * want.norm()
                 };
                 assert!(
                     (got[1] - want).norm() <= tol,
