@@ -55,7 +55,7 @@
 //! of one exponential per term ([`crate::lag_powers`]), summed per batch.
 
 use crate::connect::{Connector, Ends};
-use crate::lag_powers::{PowerSums, Powers};
+use crate::lag_powers::{PowerSums, Powers, SlotSums};
 use crate::{
     Coherence, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
@@ -177,6 +177,9 @@ struct Scratch<'s, M, P> {
     buf: Vec<Complex64>,
     /// The batch's sums of the lags taken by [`Powers`]: single and multiple scattering.
     table: Option<[PowerSums; 2]>,
+    /// Diagonal entries without drift ([`CorrelationSink::diagonal_powers`]): the batch's sums
+    /// of multiple scattering at those lags, one slot per entry and term combination.
+    slots: Option<SlotSums>,
     /// A vertex's terms for [`PowerSums::add`]: entry, weighted amplitude product, exponent of
     /// the power base.
     terms: Vec<(usize, Complex64, f64)>,
@@ -189,6 +192,10 @@ struct Scratch<'s, M, P> {
     first_cross: Vec<f64>,
     last_fwd: Vec<f64>,
     last_rev: Vec<f64>,
+    /// The crossed terms' last transfer `-w_in - (g_fb + g_rb) / 2` in two parts,
+    /// `-w_in - g_fb / 2` per sensor less `g_rb / 2` per source.
+    cross_sen: Vec<DVec3>,
+    cross_src: Vec<DVec3>,
     /// The sampled displacements' stream of the current path, and the standard normal vectors
     /// of its first and current vertices.
     brown: PathRng,
@@ -317,24 +324,27 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     /// Brownian exponent of a term combination is a first vertex's part, which depends on the
     /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
     /// plus the last vertex's: so the parts are formed once per path, source or sensor
-    /// (`first_*`, `last_*`) rather than once per entry and combination. The terms, their
-    /// values and their order are those of the general path (`tests/motion.rs` compares the
-    /// two bitwise).
+    /// (`first_*`, `last_*`) rather than once per entry and combination. Every entry has the
+    /// same combinations (forward, crossed, reversed; all real: `a conj(a)`,
+    /// `a conj(b) + b conj(a)`), so they go to [`SlotSums`], one vector lane per entry. The
+    /// terms are those of the general path, their sums equal to rounding (`tests/motion.rs`
+    /// compares the two).
     fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
         use speckle_motion::{first_transfer, last_transfer, sensor_gradient, source_gradient};
         let Scratch {
             conn,
             state,
-            table,
-            terms: out,
+            slots,
             first_fwd,
             first_rev,
             first_cross,
             last_fwd,
             last_rev,
+            cross_sen,
+            cross_src,
             ..
         } = &mut *self.s;
-        let (Some(p), Some(tables)) = (&self.plan.powers, table) else {
+        let Some(p) = &self.plan.powers else {
             return;
         };
         let c = self.plan.k * self.plan.k * p.delta;
@@ -347,8 +357,8 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         let g_fb = |v: usize| sensor_gradient(ends.out_b.dir(v));
         let g_r1 = |v: usize| sensor_gradient(ends.out1.dir(v));
         let g_rb = |i: usize| source_gradient(ends.in_b.dir(i));
-        let first = |g1, g2| d1 * first_transfer(w1, g1, g2).length_squared();
-        let last = |g1, g2| db * last_transfer(w_in, g1, g2).length_squared();
+        let first = move |g1, g2| d1 * first_transfer(w1, g1, g2).length_squared();
+        let last = move |g1, g2| db * last_transfer(w_in, g1, g2).length_squared();
         if second {
             first_fwd.clear();
             first_fwd.extend((0..n_src).map(|i| first(g_f1(i), g_f1(i))));
@@ -363,38 +373,37 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         last_fwd.clear();
         last_fwd.extend((0..n_sen).map(|v| last(g_fb(v), g_fb(v))));
         last_rev.clear();
+        cross_sen.clear();
+        cross_src.clear();
         if reversed {
             last_rev.extend((0..n_src).map(|i| last(g_rb(i), g_rb(i))));
+            cross_sen.extend((0..n_sen).map(|v| -w_in - 0.5 * g_fb(v)));
+            cross_src.extend((0..n_src).map(|i| 0.5 * g_rb(i)));
         }
-        out.clear();
+        let slots = slots.as_mut().expect("slot sums of diagonal entries");
+        let mut terms = slots.terms();
+        let (first_fwd, first_rev, first_cross) =
+            (&first_fwd[..], &first_rev[..], &first_cross[..]);
+        let (last_fwd, last_rev) = (&last_fwd[..], &last_rev[..]);
+        let (cross_sen, cross_src) = (&cross_sen[..], &cross_src[..]);
         for (e, en) in self.plan.local.iter().enumerate() {
             let (i, v) = (en.s1, en.v1);
             let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
-            let ff = (pf * pf.conj(), first_fwd[i] + last_fwd[v]);
+            // `a conj(a)` and `a conj(b) + b conj(a)` are real to the last bit:
+            // `|a|^2` and `2 Re(a conj(b))`, formed with the same products.
+            let xf = c * (y + first_fwd[i] + last_fwd[v]);
+            terms.set(e, 0, w * pf.norm_sqr(), xf);
             if !reversed {
-                merge_terms(out, e, w, c, y, &[ff]);
                 continue;
             }
             let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
-            let cross = first_cross[e] + last(g_fb(v), g_rb(i));
-            let combos = [
-                ff,
-                (pf * pr.conj(), cross),
-                (pr * pf.conj(), cross),
-                (pr * pr.conj(), first_rev[v] + last_rev[i]),
-            ];
-            let distinct = ff.1 != cross && ff.1 != combos[3].1 && cross != combos[3].1;
-            if distinct && combos.iter().all(|t| t.0 != Complex64::ZERO) {
-                // What `merge_terms` gives then, without its search: the cross terms added.
-                let [(a, x), (b, y_x), (d, _), (r, z)] = combos;
-                out.push((e, w * a, c * (y + x)));
-                out.push((e, w * (b + d), c * (y + y_x)));
-                out.push((e, w * r, c * (y + z)));
-            } else {
-                merge_terms(out, e, w, c, y, &combos);
-            }
+            let cross = first_cross[e] + db * (cross_sen[v] - cross_src[i]).length_squared();
+            let crossed = pf.re * pr.re + pf.im * pr.im;
+            terms.set(e, 1, w * (crossed + crossed), c * (y + cross));
+            let xr = c * (y + first_rev[v] + last_rev[i]);
+            terms.set(e, 2, w * pr.norm_sqr(), xr);
         }
-        tables[1].add(out);
+        slots.add();
     }
 
     /// [`Self::single_terms`] and [`Self::push_powers`] of single scattering at once for
@@ -424,7 +433,11 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                 ends.in1.amp(i) * ends.out1.amp(v) * conn.first_amplitude(self.type1, j, ds, dv);
             let g = source_gradient(ds) + sensor_gradient(dv);
             let a = d1 * single_transfer(g, g).length_squared();
-            merge_terms(out, e, w, c, 0.0, &[(f * f.conj(), a)]);
+            // What `merge_terms` gives for this one combination.
+            let pr = f * f.conj();
+            if pr != Complex64::ZERO {
+                out.push((e, w * pr, c * a));
+            }
         }
         tables[0].add_held(out);
     }
@@ -837,6 +850,12 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
     };
     let e_len: usize = list.len();
+    // Diagonal entries without drift: the forward, crossed and reversed terms.
+    let slots_per_entry = if options.coherence == Coherence::ForwardAndReversed {
+        3
+    } else {
+        1
+    };
     let beams = scene.has_beams();
     let factor = MotionFactor::new(scene.medium(), &model, scene.wavenumber(), lags[0]);
     let tracer = scene.tracer_with(
@@ -906,12 +925,19 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
                 .powers
                 .as_ref()
                 .map(|p| [PowerSums::new(p, e_len), PowerSums::new(p, e_len)]),
+            slots: plan
+                .powers
+                .as_ref()
+                .filter(|_| plan.mode == Mode::Diagonal && !plan.sampled)
+                .map(|p| SlotSums::new(p, e_len, slots_per_entry)),
             terms: Vec::with_capacity(4 * e_len),
             first_fwd: Vec::new(),
             first_rev: Vec::new(),
             first_cross: Vec::new(),
             last_fwd: Vec::new(),
             last_rev: Vec::new(),
+            cross_sen: Vec::new(),
+            cross_src: Vec::new(),
             inside: vec![true; lags.len()],
             brown: PathRng::new(plan.key, 0),
             z1: DVec3::ZERO,
@@ -941,6 +967,9 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             for (half, t) in tables.iter_mut().enumerate() {
                 t.flush(sums, |l| 2 * l + half, &mut s.buf);
             }
+        }
+        if let Some(t) = &mut s.slots {
+            t.flush(sums, |l| 2 * l + 1, &mut s.buf);
         }
     };
     let estimates = batch_moments_grouped(options.paths, &groups, init, path, end, progress)

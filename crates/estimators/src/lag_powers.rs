@@ -468,6 +468,333 @@ fn scale_add<S: pulp::Simd>(simd: S, s: &mut [f64], p: &[f64], a: f64) {
     }
 }
 
+/// Real sums `sum z r^(m_l)` of the lags of a [`Powers`], one vector lane per entry: every
+/// entry has the same term combinations (`P` of them: its forward, crossed and reversed terms,
+/// say), one *slot* each, filled at every vertex, so that the powers of eight entries' terms
+/// are formed together by repeated products, `z r^(m + 1) = (z r^m) r`, and an entry's
+/// combinations added in registers before its sum is loaded and stored once per lag. This
+/// needs no per-term set-up, which is what costs in [`PowerSums`] when a vertex has tens of
+/// terms. The sums are lag-major, `[k E + e]`, `E` the entries rounded up to a multiple of
+/// eight. A repeated product differs from `exp(-m x)` by rounding only (`m` products, at most
+/// `m` ulps, against a few for [`PowerSums`]); a term whose powers would underflow within the
+/// lags goes through a scalar loop of the same products that stops below
+/// [`PowerSums::TINY`].
+///
+/// Like [`PowerSums`], the loops are compiled for the instruction sets the CPU has and use no
+/// fused multiply-adds: every instruction set gives bitwise the same sums.
+pub(crate) struct SlotSums {
+    /// The lags' indices `l` in the order of the sums.
+    lags: Vec<usize>,
+    /// Their step counts `m_l`, increasing.
+    steps: Vec<usize>,
+    /// Term combinations per entry (`P`), and entries.
+    per_entry: usize,
+    entries: usize,
+    /// Entries rounded up to a multiple of eight (`E`).
+    width: usize,
+    /// A vertex's terms, `[(b P + c) 8 + i]` for entry `8 b + i` and combination `c` (zero
+    /// where not set): weights and exponents (the bases are `r = exp(-x)`), and scratch for
+    /// the bases.
+    z: Vec<f64>,
+    x: Vec<f64>,
+    r: Vec<f64>,
+    /// The sums, `[k E + e]`.
+    sums: Vec<f64>,
+    /// The least base whose powers stay above [`PowerSums::TINY`] at every lag (with a margin
+    /// for the products' rounding).
+    least: f64,
+    /// Whether anything was added since the last flush.
+    touched: bool,
+    /// The instruction set of the loops (as [`PowerSums`]).
+    arch: pulp::Arch,
+    /// With fewer than [`Self::FEW`] entries (most lanes would be empty), the terms go to a
+    /// [`PowerSums`] instead, through `terms`.
+    few: Option<PowerSums>,
+    terms: Vec<(usize, Complex64, f64)>,
+}
+
+impl SlotSums {
+    /// Fewer entries than this take [`PowerSums`]: its cost per term is about that of a
+    /// block of eight lanes with three filled.
+    const FEW: usize = 3;
+
+    /// Entries per block: one vector of eight lanes (two or four vectors on narrower
+    /// instruction sets; the arithmetic is the same lane by lane).
+    const LANES: usize = 8;
+
+    /// Empty sums of `entries` entries of `per_entry` (1 to 4) term combinations each at the
+    /// lags of `p`.
+    pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
+        assert!((1..=4).contains(&per_entry), "1 to 4 term combinations");
+        let lags: Vec<usize> = p.order.iter().map(|&(l, _)| l).collect();
+        let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
+        let width = entries.div_ceil(Self::LANES) * Self::LANES;
+        let most = steps.last().copied().unwrap_or(1).max(1);
+        Self {
+            z: vec![0.0; width * per_entry],
+            x: vec![0.0; width * per_entry],
+            r: vec![0.0; width * per_entry],
+            sums: vec![0.0; lags.len() * width],
+            lags,
+            steps,
+            per_entry,
+            entries,
+            width,
+            least: PowerSums::TINY.powf(1.0 / most as f64) * 1.001,
+            touched: false,
+            arch: pulp::Arch::new(),
+            few: (entries < Self::FEW).then(|| PowerSums::new(p, entries)),
+            terms: Vec::new(),
+        }
+    }
+
+    /// Where the term of entry `e`'s combination `c` is kept.
+    #[inline]
+    fn slot(per_entry: usize, e: usize, c: usize) -> usize {
+        ((e / Self::LANES) * per_entry + c) * Self::LANES + e % Self::LANES
+    }
+
+    /// Where a vertex's terms are put for the next [`Self::add`] ([`SlotTerms::set`]).
+    #[inline]
+    pub fn terms(&mut self) -> SlotTerms<'_> {
+        SlotTerms {
+            z: &mut self.z,
+            x: &mut self.x,
+            per_entry: self.per_entry,
+        }
+    }
+
+    /// Adds the terms set since the last call to their entries' sums at every lag, and clears
+    /// them.
+    pub fn add(&mut self) {
+        self.touched = true;
+        if let Some(few) = &mut self.few {
+            self.terms.clear();
+            for e in 0..self.entries {
+                for c in 0..self.per_entry {
+                    let s = Self::slot(self.per_entry, e, c);
+                    if self.z[s] != 0.0 {
+                        self.terms
+                            .push((e, Complex64::new(self.z[s], 0.0), self.x[s]));
+                    }
+                }
+            }
+            few.add(&self.terms);
+            self.z.fill(0.0);
+            return;
+        }
+        let arch = self.arch;
+        match self.per_entry {
+            1 => arch.dispatch(AddSlots::<1> { sums: self }),
+            2 => arch.dispatch(AddSlots::<2> { sums: self }),
+            3 => arch.dispatch(AddSlots::<3> { sums: self }),
+            _ => arch.dispatch(AddSlots::<4> { sums: self }),
+        }
+        self.z.fill(0.0);
+    }
+
+    /// Adds the sums of lag `l` (at position `k`) to `sums[part(l)]`, for every lag, and
+    /// empties them; `buf` holds one value per entry.
+    pub fn flush(
+        &mut self,
+        sums: &mut [BatchSum],
+        part: impl Fn(usize) -> usize,
+        buf: &mut [Complex64],
+    ) {
+        if !self.touched {
+            return;
+        }
+        self.touched = false;
+        if let Some(few) = &mut self.few {
+            few.flush(sums, part, buf);
+            return;
+        }
+        for (k, &l) in self.lags.iter().enumerate() {
+            let row = &self.sums[k * self.width..][..self.entries];
+            for (b, &v) in buf.iter_mut().zip(row) {
+                *b = Complex64::new(v, 0.0);
+            }
+            sums[part(l)].push_values(&buf[..self.entries], Complex64::new(1.0, 0.0));
+        }
+        self.sums.fill(0.0);
+    }
+}
+
+/// A vertex's terms on their way to [`SlotSums::add`] (slices of their own, so that filling
+/// them reloads nothing).
+pub(crate) struct SlotTerms<'a> {
+    z: &'a mut [f64],
+    x: &'a mut [f64],
+    per_entry: usize,
+}
+
+impl SlotTerms<'_> {
+    /// Puts the term `z r^m`, `r = exp(-x)` (`x >= 0`), of entry `e`'s combination `c` (a
+    /// combination not set since the last [`SlotSums::add`] adds nothing).
+    #[inline]
+    pub fn set(&mut self, e: usize, c: usize, z: f64, x: f64) {
+        let s = SlotSums::slot(self.per_entry, e, c);
+        self.z[s] = z;
+        self.x[s] = x;
+    }
+}
+
+/// [`SlotSums::add`]'s loops for `P` combinations per entry, compiled for each instruction set
+/// (as [`AddLags`]).
+struct AddSlots<'a, const P: usize> {
+    sums: &'a mut SlotSums,
+}
+
+impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
+    type Output = ();
+
+    /// The bases `r = exp(-x)` ([`exp_neg`]); a term whose powers would underflow is taken out
+    /// of the vectors (its weight zero there) and added by a scalar loop of the same products;
+    /// then, per block of eight entries, `q_c = z_c r_c` for each combination `c`, and at each
+    /// step `m` up to the largest lag's, `sums[k] += q_1 + ... + q_P` for the lags `k` of that
+    /// step, `q_c *= r_c`.
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, simd: S) {
+        const L: usize = SlotSums::LANES;
+        let t = self.sums;
+        for (r, x) in t.r.iter_mut().zip(&t.x) {
+            *r = exp_neg(*x);
+        }
+        let (n, w) = (t.lags.len(), t.width);
+        let last = t.steps.last().copied().unwrap_or(0);
+        // (Whether any term underflows, without a branch per term.)
+        let least = t.least;
+        let low =
+            t.z.iter()
+                .zip(&t.r)
+                .fold(false, |a, (z, r)| a | ((*z != 0.0) & (*r < least)));
+        for s in 0..if low { t.z.len() } else { 0 } {
+            if t.z[s] == 0.0 || t.r[s] >= t.least {
+                continue;
+            }
+            let (z, r) = (t.z[s], t.r[s]);
+            t.z[s] = 0.0;
+            let e = (s / (P * L)) * L + s % L;
+            let mut q = z * r;
+            let mut k = 0;
+            for m in 1..=last {
+                if q.abs() < PowerSums::TINY {
+                    break;
+                }
+                while k < n && t.steps[k] == m {
+                    t.sums[k * w + e] += q;
+                    k += 1;
+                }
+                q *= r;
+            }
+        }
+        let contiguous = t.steps.iter().enumerate().all(|(k, &m)| m == k + 1);
+        // Two blocks at a time (`2 P` independent chains of products), then the last alone;
+        // blocks without terms are skipped.
+        let mut held = None;
+        for b in 0..w / L {
+            if t.z[b * P * L..(b + 1) * P * L].iter().all(|&z| z == 0.0) {
+                continue;
+            }
+            match held.take() {
+                None => held = Some(b),
+                Some(a) => add_blocks::<S, P, 2>(simd, t, [a, b], contiguous),
+            }
+        }
+        if let Some(a) = held {
+            add_blocks::<S, P, 1>(simd, t, [a], contiguous);
+        }
+    }
+}
+
+/// [`AddSlots`] for `B` blocks of eight entries at once (their powers' chains of products
+/// interleaved): `q = z r`, and at each step `m` up to the largest lag's, `sums[k] += q_1 +
+/// ... + q_P` for the lags `k` of that step, `q *= r`.
+#[inline(always)]
+fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
+    simd: S,
+    t: &mut SlotSums,
+    blocks: [usize; B],
+    contiguous: bool,
+) {
+    const L: usize = SlotSums::LANES;
+    let (n, w) = (t.lags.len(), t.width);
+    let mut q = [[[0.0; L]; P]; B];
+    let mut r = [[[0.0; L]; P]; B];
+    for (j, &b) in blocks.iter().enumerate() {
+        for c in 0..P {
+            let i = (b * P + c) * L;
+            r[j][c].copy_from_slice(&t.r[i..i + L]);
+            q[j][c].copy_from_slice(&t.z[i..i + L]);
+            let (qv, _) = S::as_mut_simd_f64s(&mut q[j][c]);
+            let (rv, _) = S::as_simd_f64s(&r[j][c]);
+            for (q, r) in qv.iter_mut().zip(rv) {
+                *q = simd.mul_f64s(*q, *r);
+            }
+        }
+    }
+    if contiguous {
+        for k in 0..n {
+            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), &mut q);
+        }
+        return;
+    }
+    let mut k = 0;
+    for m in 1..=t.steps.last().copied().unwrap_or(0) {
+        // Equal steps (lags `t` and `-t`) take the same powers.
+        while k + 1 < n && t.steps[k + 1] == m && t.steps[k] == m {
+            for (j, &b) in blocks.iter().enumerate() {
+                let row = &mut t.sums[k * w + b * L..][..L];
+                for (i, s) in row.iter_mut().enumerate() {
+                    for qc in q[j].iter() {
+                        *s += qc[i];
+                    }
+                }
+            }
+            k += 1;
+        }
+        let at = (k < n && t.steps[k] == m).then_some(k);
+        k += usize::from(at.is_some());
+        step_blocks(simd, &mut t.sums, w, &blocks, &r, at, &mut q);
+    }
+}
+
+/// One step of [`add_blocks`]: the sums of lag `k` (none between gathered lags), then the
+/// next powers. (A function rather than a closure, so that it is inlined with the instruction
+/// set of its caller.)
+#[inline(always)]
+fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
+    simd: S,
+    sums: &mut [f64],
+    w: usize,
+    blocks: &[usize; B],
+    r: &[[[f64; SlotSums::LANES]; P]; B],
+    k: Option<usize>,
+    q: &mut [[[f64; SlotSums::LANES]; P]; B],
+) {
+    const L: usize = SlotSums::LANES;
+    for (j, &b) in blocks.iter().enumerate() {
+        if let Some(k) = k {
+            let row = &mut sums[k * w + b * L..][..L];
+            let (sv, _) = S::as_mut_simd_f64s(row);
+            for (v, s) in sv.iter_mut().enumerate() {
+                let mut acc = *s;
+                for qc in q[j].iter() {
+                    acc = simd.add_f64s(acc, S::as_simd_f64s(qc).0[v]);
+                }
+                *s = acc;
+            }
+        }
+        for (qc, rc) in q[j].iter_mut().zip(&r[j]) {
+            let (qv, _) = S::as_mut_simd_f64s(qc);
+            let (rv, _) = S::as_simd_f64s(rc);
+            for (q, r) in qv.iter_mut().zip(rv) {
+                *q = simd.mul_f64s(*q, *r);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -614,6 +941,122 @@ mod tests {
                     "lag {l}: {x:?} {y:?}"
                 );
             }
+        }
+    }
+
+    /// The terms of slot sums' tests: `entries` entries of three combinations, over several
+    /// vertices, with bases from near one to ones that underflow within the lags.
+    fn slot_terms(entries: usize, vertices: usize) -> Vec<Vec<(usize, usize, f64, f64)>> {
+        (0..vertices)
+            .map(|v| {
+                let mut terms = Vec::new();
+                for e in 0..entries {
+                    for c in 0..3 {
+                        let i = (v * entries + e) * 3 + c;
+                        let x =
+                            [1e-3, 0.1, 0.7, 6.9, 92.0, 2e-3, 0.3][i % 7] * (1.0 + 1e-3 * i as f64);
+                        // Some combinations left out (not set) and some negative.
+                        if i % 11 != 4 {
+                            terms.push((
+                                e,
+                                c,
+                                (1.0 + i as f64) * if c == 1 { -0.3 } else { 1.0 },
+                                x,
+                            ));
+                        }
+                    }
+                }
+                terms
+            })
+            .collect()
+    }
+
+    /// Slot sums after flushing, per lag and entry.
+    fn slot_sums(
+        lags: &[f64],
+        entries: usize,
+        arch: Option<pulp::Arch>,
+        terms: &[Vec<(usize, usize, f64, f64)>],
+    ) -> Vec<Vec<Complex64>> {
+        let p = Powers::of(lags).unwrap();
+        let mut s = SlotSums::new(&p, entries, 3);
+        if let Some(a) = arch {
+            s.arch = a;
+        }
+        for vertex in terms {
+            let mut t = s.terms();
+            for &(e, c, z, x) in vertex {
+                t.set(e, c, z, x);
+            }
+            s.add();
+        }
+        let layout = speckle_stats::Layout::GeneralDiagonal;
+        let mut sums = vec![BatchSum::new(layout, entries, &Default::default()); lags.len()];
+        let mut buf = vec![Complex64::ZERO; entries];
+        s.flush(&mut sums, |l| l, &mut buf);
+        sums.into_iter().map(|b| b.finish()).collect()
+    }
+
+    /// Slot sums are `sum z exp(-m x)` to rounding (each power `m` products, each sum a few
+    /// dozen terms of either sign: the tolerance is `(m + 16) eps` of the sum of the terms'
+    /// magnitudes, plus the reference's own rounding of `m x`), with powers below `TINY` left
+    /// out, on regular lags, gathered lags (with a zero lag and two lags of equal `|t|`), for
+    /// many entries (vector lanes) and for few (the [`PowerSums`] route).
+    #[test]
+    fn slot_sums_are_the_exponentials_to_rounding() {
+        let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
+        let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
+        for (lags, entries) in [
+            (&regular, 11),
+            (&gathered, 9),
+            (&regular, 2),
+            (&gathered, 1),
+        ] {
+            let p = Powers::of(lags).unwrap();
+            let terms = slot_terms(entries, 3);
+            let got = slot_sums(lags, entries, None, &terms);
+            for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
+                let m = (t.abs() / p.delta).round();
+                for (e, g) in row.iter().enumerate() {
+                    let (mut want, mut size, mut cond) = (0.0, 0.0, 0.0);
+                    for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
+                        let v = if *t == 0.0 { 0.0 } else { z * (-m * x).exp() };
+                        if v.abs() >= PowerSums::TINY {
+                            want += v;
+                            size += v.abs();
+                            cond += v.abs() * m * x / 2.0;
+                        }
+                    }
+                    let tol = ((m + 16.0) * size + cond) * f64::EPSILON + 1e-250;
+                    assert_eq!(g.im, 0.0);
+                    assert!(
+                        (g.re - want).abs() <= tol,
+                        "lag {l}, entry {e} of {entries}: {} vs {want} (tolerance {tol:e})",
+                        g.re
+                    );
+                }
+            }
+        }
+    }
+
+    /// Slot sums on every instruction set are bitwise the plain (one lane) loops', on regular
+    /// and gathered lags.
+    #[test]
+    fn slot_sums_are_the_same_on_every_instruction_set() {
+        let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
+        let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
+        for lags in [&regular, &gathered] {
+            let terms = slot_terms(19, 4);
+            let fast = slot_sums(lags, 19, None, &terms);
+            let plain = slot_sums(lags, 19, Some(pulp::Arch::Scalar), &terms);
+            let bits = |v: &[Vec<Complex64>]| {
+                v.iter()
+                    .flatten()
+                    .map(|z| (z.re.to_bits(), z.im.to_bits()))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&fast), bits(&plain));
+            assert!(fast.iter().flatten().any(|z| z.re != 0.0));
         }
     }
 
