@@ -72,6 +72,11 @@ impl Powers {
             Some(Self { delta, order })
         })
     }
+
+    /// The non-zero lags' indices `l` and their step counts `m_l`, apart, in `order`.
+    fn lags_and_steps(&self) -> (Vec<usize>, Vec<usize>) {
+        self.order.iter().copied().unzip()
+    }
 }
 
 /// Sums `sum z r^(m_l)` of every entry at every non-zero lag of a [`Powers`].
@@ -121,8 +126,7 @@ impl PowerSums {
 
     /// Empty sums of `entries` entries at the lags of `p`.
     pub fn new(p: &Powers, entries: usize) -> Self {
-        let lags: Vec<usize> = p.order.iter().map(|&(l, _)| l).collect();
-        let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
+        let (lags, steps) = p.lags_and_steps();
         let contiguous = steps.iter().enumerate().all(|(k, &m)| m == k + 1);
         let max = steps.last().copied().unwrap_or(0);
         let n = lags.len();
@@ -492,6 +496,8 @@ pub(crate) struct SlotSums {
     entries: usize,
     /// Entries rounded up to a multiple of eight (`E`).
     width: usize,
+    /// Whether `steps[k] == k + 1` (every step a lag).
+    contiguous: bool,
     /// A vertex's terms, `[(b P + c) 8 + i]` for entry `8 b + i` and combination `c` (zero
     /// where not set): weights and exponents (the bases are `r = exp(-x)`), and scratch for
     /// the bases.
@@ -526,11 +532,11 @@ impl SlotSums {
     /// lags of `p`.
     pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
         assert!((1..=4).contains(&per_entry), "1 to 4 term combinations");
-        let lags: Vec<usize> = p.order.iter().map(|&(l, _)| l).collect();
-        let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
+        let (lags, steps) = p.lags_and_steps();
         let width = entries.div_ceil(Self::LANES) * Self::LANES;
         let most = steps.last().copied().unwrap_or(1).max(1);
         Self {
+            contiguous: steps.iter().enumerate().all(|(k, &m)| m == k + 1),
             z: vec![0.0; width * per_entry],
             x: vec![0.0; width * per_entry],
             r: vec![0.0; width * per_entry],
@@ -688,7 +694,7 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
                 q *= r;
             }
         }
-        let contiguous = t.steps.iter().enumerate().all(|(k, &m)| m == k + 1);
+        let contiguous = t.contiguous;
         // Two blocks at a time (`2 P` independent chains of products), then the last alone;
         // blocks without terms are skipped.
         let mut held = None;
@@ -735,7 +741,7 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     }
     if contiguous {
         for k in 0..n {
-            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), &mut q);
+            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), true, &mut q);
         }
         return;
     }
@@ -743,26 +749,20 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     for m in 1..=t.steps.last().copied().unwrap_or(0) {
         // Equal steps (lags `t` and `-t`) take the same powers.
         while k + 1 < n && t.steps[k + 1] == m && t.steps[k] == m {
-            for (j, &b) in blocks.iter().enumerate() {
-                let row = &mut t.sums[k * w + b * L..][..L];
-                for (i, s) in row.iter_mut().enumerate() {
-                    for qc in q[j].iter() {
-                        *s += qc[i];
-                    }
-                }
-            }
+            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), false, &mut q);
             k += 1;
         }
         let at = (k < n && t.steps[k] == m).then_some(k);
         k += usize::from(at.is_some());
-        step_blocks(simd, &mut t.sums, w, &blocks, &r, at, &mut q);
+        step_blocks(simd, &mut t.sums, w, &blocks, &r, at, true, &mut q);
     }
 }
 
-/// One step of [`add_blocks`]: the sums of lag `k` (none between gathered lags), then the
-/// next powers. (A function rather than a closure, so that it is inlined with the instruction
-/// set of its caller.)
+/// One step of [`add_blocks`]: the sums of lag `k` (none between gathered lags), then, if
+/// `advance` (not between lags of equal steps), the next powers. (A function rather than a
+/// closure, so that it is inlined with the instruction set of its caller.)
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     simd: S,
     sums: &mut [f64],
@@ -770,6 +770,7 @@ fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     blocks: &[usize; B],
     r: &[[[f64; SlotSums::LANES]; P]; B],
     k: Option<usize>,
+    advance: bool,
     q: &mut [[[f64; SlotSums::LANES]; P]; B],
 ) {
     const L: usize = SlotSums::LANES;
@@ -784,6 +785,9 @@ fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
                 }
                 *s = acc;
             }
+        }
+        if !advance {
+            continue;
         }
         for (qc, rc) in q[j].iter_mut().zip(&r[j]) {
             let (qv, _) = S::as_mut_simd_f64s(qc);
