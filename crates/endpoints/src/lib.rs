@@ -47,6 +47,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod detector;
 pub mod fastmath;
 mod free_space;
 mod gaussian;
@@ -55,6 +56,7 @@ mod mean;
 mod plane;
 mod point;
 
+pub use detector::{Detector, ON_FACE_TOLERANCE, Weighting};
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
 pub use gaussian::GaussianBeam;
 pub use kernels::{Endpoints, Legs};

@@ -47,6 +47,7 @@
 mod connect;
 mod correlation;
 mod covariance;
+mod detector;
 mod field_sequences;
 mod fields;
 mod lag_powers;
@@ -57,6 +58,7 @@ pub use covariance::{
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,
     render_intensity_with, render_single_scattering,
 };
+pub use detector::{DetectorEstimate, render_detectors};
 pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };

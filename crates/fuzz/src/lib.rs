@@ -467,6 +467,11 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
                     sampling: p.render.sampling,
                 };
                 let deadline = Deadline(Instant::now() + Duration::from_secs(HANG_SECONDS / 2));
+                if p.scene.has_detectors() {
+                    let motion = Some((&m.model, m.lags.as_slice()));
+                    detectors_finite(&p, motion, &opts, &deadline, "g1 correlation")?;
+                    return Ok(());
+                }
                 let entries = speckle::estimators::Entries::Diagonal;
                 match speckle::estimators::render_correlation(
                     &p.scene, &m.model, &m.lags, &entries, &opts, &deadline,
@@ -503,6 +508,9 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
             sampling: p.render.sampling,
         };
         let deadline = Deadline(Instant::now() + Duration::from_secs(HANG_SECONDS / 2));
+        if p.scene.has_detectors() {
+            return detectors_finite(&p, None, &opts, &deadline, "detector reading");
+        }
         match render_intensity(&p.scene, &opts, &deadline) {
             Ok(est) => {
                 if let Some(v) = est
@@ -535,6 +543,31 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
         }
     }
     Ok(())
+}
+
+/// A tiny render of a scene's detectors (`motion`: at its lags): a finding when it is not
+/// finite, hangs or fails.
+fn detectors_finite(
+    p: &Problem,
+    motion: Option<(&speckle::motion::MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    deadline: &Deadline,
+    what: &str,
+) -> Result<(), Finding> {
+    match speckle::estimators::render_detectors(&p.scene, motion, opts, deadline) {
+        Ok(Some(est)) => match est
+            .total
+            .value
+            .as_slice()
+            .iter()
+            .find(|c| !(c.re.is_finite() && c.im.is_finite()))
+        {
+            Some(v) => Err(Finding::NotFinite(format!("{what} {v}"))),
+            None => Ok(()),
+        },
+        Ok(None) | Err(speckle::estimators::EstimatorError::Cancelled) => Err(Finding::Hang),
+        Err(e) => Err(Finding::Unnamed(format!("detector render failed: {e}"))),
+    }
 }
 
 /// A fuzzing run's tally.

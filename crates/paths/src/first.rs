@@ -560,13 +560,16 @@ pub(crate) struct EndpointMixture {
     /// probabilities sum to `1 - volume`.
     pub(crate) groups: Vec<(usize, f64)>,
     pub(crate) dimension: Dimension,
+    /// Whether a first vertex sampled around a point takes its first direction from the phase
+    /// function about the point's leg, `unit(x1 - p)` ([`crate::Tracer::with_point_directions`]).
+    pub(crate) point_directions: bool,
 }
 
 /// Which strategy sampled a first vertex.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Component {
     Volume,
-    Point,
+    Point(usize),
     Beam(usize),
 }
 
@@ -587,10 +590,25 @@ impl EndpointMixture {
         })
     }
 
-    /// Whether some beam samples first directions from its own strategy.
+    /// Whether some beam, or every point, samples first directions from its own strategy.
     #[inline]
     pub(crate) fn samples_directions(&self) -> bool {
-        self.beams.iter().any(BeamSampler::samples_directions)
+        (self.point_directions && !self.points.is_empty())
+            || self.beams.iter().any(BeamSampler::samples_directions)
+    }
+
+    /// The density of `w` as the first direction from `x` of the component around point `k`
+    /// when points sample directions: the phase function about the leg `unit(x - p_k)`.
+    #[inline]
+    fn point_direction_pdf<P: PhaseFunction>(
+        &self,
+        phase: &P,
+        k: usize,
+        x: DVec3,
+        w: DVec3,
+    ) -> f64 {
+        let leg = (x - self.points[k]).normalize_or_zero();
+        phase.pdf_direction(leg, w)
     }
 
     /// The density of the component around point `k` at `x`.
@@ -639,10 +657,11 @@ impl EndpointMixture {
         total
     }
 
-    /// The joint density of the first vertex `x` and first direction `w` when beams sample
-    /// directions: `volume q_o(x) p(w) + sum over groups of each component's probability times
-    /// (sum_points q_k(x) p(w) + sum_beams q_j(x) p_j(w | x))`, with `p` the configured direction
-    /// density `base`.
+    /// The joint density of the first vertex `x` and first direction `w` when beams (or points)
+    /// sample directions: `volume q_o(x) p(w) + sum over groups of each component's probability
+    /// times (sum_points q_k(x) p_k(w | x) + sum_beams q_j(x) p_j(w | x))`, with `p` the
+    /// configured direction density `base`, and `p_k = p` unless points sample directions
+    /// (then the phase function about `unit(x - p_k)`).
     #[inline]
     pub(crate) fn joint_pdf<P: PhaseFunction>(
         &self,
@@ -654,6 +673,37 @@ impl EndpointMixture {
     ) -> f64 {
         let mut total = self.volume * volume_pdf * base;
         for (r, each) in self.ranges() {
+            if self.point_directions {
+                let np = self.points.len();
+                let points: f64 = (r.start.min(np)..r.end.min(np))
+                    .map(|k| {
+                        let q = self.point_pdf(k, x);
+                        if q == 0.0 {
+                            0.0
+                        } else {
+                            q * self.point_direction_pdf(phase, k, x, w)
+                        }
+                    })
+                    .sum();
+                total += each * points;
+                let (b0, b1) = (r.start.max(np), r.end.max(np));
+                if b0 == b1 {
+                    continue;
+                }
+                let r = b0..b1;
+                let (_, beams) = self.sums(r, x, |b| {
+                    let q = b.pdf(x);
+                    if q == 0.0 {
+                        0.0
+                    } else if b.samples_directions() {
+                        q * b.direction_pdf(phase, x, w)
+                    } else {
+                        q * base
+                    }
+                });
+                total += each * beams;
+                continue;
+            }
             let (points, beams) = self.sums(r, x, |b| {
                 let q = b.pdf(x);
                 if q == 0.0 {
@@ -692,7 +742,7 @@ impl EndpointMixture {
         }
         let w = self.dimension.sample_uniform_direction([u[0], u[1]]);
         let r = -(-u[2]).ln_1p() / self.rates[k];
-        (self.points[k] + r * w, Component::Point)
+        (self.points[k] + r * w, Component::Point(k))
     }
 }
 
@@ -728,6 +778,7 @@ mod tests {
                 volume: 1.0 / 3.0,
                 groups: EndpointMixture::one_group(2, 1.0 / 3.0),
                 dimension,
+                point_directions: false,
             };
             let n = 400_000;
             let (mut acc, mut acc2) = (0.0, 0.0);

@@ -20,6 +20,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod detectors;
 mod file;
 mod identity;
 mod merge;
@@ -319,6 +320,19 @@ pub fn guard(
     Ok(e)
 }
 
+/// The intensities of every pair of `p` (`speckle intensity`): the covariance diagonal, or
+/// for a scene of detectors their readings (`speckle_estimators::render_detectors`).
+pub fn intensity(p: &Problem, progress: &dyn Progress) -> Result<CovarianceEstimate, RunError> {
+    if p.scene.has_detectors() {
+        return detectors::readings(p, progress);
+    }
+    Ok(render_intensity(
+        &p.scene,
+        &covariance_options(p),
+        progress,
+    )?)
+}
+
 /// Renders the whole of `kind` for `p`.
 pub fn render(p: &Problem, kind: Kind, progress: &dyn Progress) -> Result<Outcome, RunError> {
     Ok(match kind {
@@ -326,11 +340,7 @@ pub fn render(p: &Problem, kind: Kind, progress: &dyn Progress) -> Result<Outcom
             let e = render_covariance(&p.scene, &covariance_options(p), progress)?;
             Outcome::Covariance(e, means(p, 0..p.pairs(), progress)?)
         }
-        Kind::Intensity => Outcome::Intensity(render_intensity(
-            &p.scene,
-            &covariance_options(p),
-            progress,
-        )?),
+        Kind::Intensity => Outcome::Intensity(intensity(p, progress)?),
         Kind::Fields => Outcome::Fields(render_fields(&p.scene, &field_options(p), progress)?),
         Kind::Wave => {
             let scene = p.box_scene().map_err(|e| p.in_document(e))?;
@@ -348,6 +358,12 @@ pub fn render_shard(
     progress: &dyn Progress,
 ) -> Result<ShardFile, RunError> {
     let start = std::time::Instant::now();
+    if p.scene.has_detectors() {
+        return Err(RunError::Load(p.in_document(SceneError::InvalidInput {
+            field: "sensors".into(),
+            reason: "renders of detectors are not sharded yet; render them whole".into(),
+        })));
+    }
     let data = match kind {
         Kind::Covariance => {
             let m = render_covariance_shard(&p.scene, &covariance_options(p), shard, progress)?;

@@ -79,6 +79,18 @@ fn render_temporal(
     opts: &speckle_estimators::CovarianceOptions,
     progress: &dyn Progress,
 ) -> Result<Temporal, RunError> {
+    if p.scene.has_detectors() {
+        let est = crate::detectors::render(p, Some((&motion.model, &motion.lags)), opts, progress)?;
+        let (mut c, mut se) = (vec![], vec![]);
+        for j in 0..est.pairs {
+            let (v, s) = est.curve(j);
+            c.extend(v);
+            se.extend(s);
+        }
+        return Ok(Temporal::from_correlation(
+            est.lags, est.pairs, c, se, est.paths,
+        ));
+    }
     let est = render_correlation(
         &p.scene,
         &motion.model,

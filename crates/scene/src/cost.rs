@@ -411,6 +411,9 @@ impl Problem {
         // Every command here is a Monte Carlo render (or the mean field): refuse what the
         // estimators would refuse, naming the endpoint. They all connect Gaussian beams (near
         // field) whose amplitudes are vMF lobes; the mean has its own closed form.
+        if !matches!(command, Command::Intensity | Command::G1) {
+            self.scene.check_field_sensors()?;
+        }
         let (sources, sensors) = (self.scene.sources(), self.scene.sensors());
         match command {
             Command::Mean => Ok(()),

@@ -32,6 +32,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
     ("beads", include_str!("../../../scenes/beads.toml")),
     ("dcs", include_str!("../../../scenes/dcs.toml")),
     (
+        "tissue_fibre",
+        include_str!("../../../scenes/tissue_fibre.toml"),
+    ),
+    (
         "spatiotemporal_2d",
         include_str!("../../../scenes/spatiotemporal_2d.toml"),
     ),

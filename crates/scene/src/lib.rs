@@ -23,7 +23,7 @@
 
 use num_complex::Complex64;
 use rayon::prelude::*;
-use speckle_endpoints::{Pair, Sensor, Source};
+use speckle_endpoints::{Detector, Pair, Sensor, Source};
 use speckle_medium::{DVec3, Medium};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
@@ -73,7 +73,7 @@ impl From<speckle_endpoints::EndpointError> for SceneError {
 /// A validated speckle rendering problem.
 ///
 /// ```
-/// use speckle_endpoints::{Pair, Sensor, Source};
+/// use speckle_endpoints::{Detector, Pair, Sensor, Source};
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 /// use speckle_phase::Phase;
 /// use speckle_scene::Scene;
@@ -98,7 +98,14 @@ pub struct Scene<M, P> {
     sources: Vec<Source>,
     sensors: Vec<Sensor>,
     pairs: Vec<Pair>,
+    detectors: Vec<Detector>,
 }
+
+/// The message of a field render asked of a scene whose sensors are detectors.
+const DETECTORS_ONLY: &str = "the sensors are detectors, which integrate intensity over an area \
+     and an aperture: they read intensities and temporal correlations (speckle intensity, g1), \
+     not field covariances, fields, means or wave solutions; use point, far-field or Gaussian \
+     sensors for those";
 
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> SceneError {
     SceneError::InvalidInput {
@@ -209,7 +216,90 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             sources,
             sensors,
             pairs,
+            detectors: vec![],
         })
+    }
+
+    /// A scene whose sensors are disc detectors on the medium's faces (already validated
+    /// against `medium`, [`Detector::new`]): its pairs are every (source, detector) combination,
+    /// source-major, `Pair::sensor` indexing the detectors. Only the detector estimators
+    /// (`speckle_estimators::render_detectors`) render it: [`Scene::tracer`] and the means refuse
+    /// it, naming `sensors`. Sources must be point sources or plane waves (their legs end at the
+    /// first vertex), named `sources[i]` otherwise.
+    pub fn with_detectors(
+        medium: M,
+        phases: Vec<P>,
+        wavelength: f64,
+        sources: Vec<Source>,
+        detectors: Vec<Detector>,
+    ) -> Result<Self, SceneError> {
+        if detectors.is_empty() {
+            return Err(invalid("sensors", "at least one sensor is needed"));
+        }
+        if let Some(i) = sources
+            .iter()
+            .position(|s| matches!(s, Source::GaussianBeam(_)))
+        {
+            return Err(invalid(
+                format!("sources[{i}]"),
+                "detectors read light from point sources and plane waves; a focused Gaussian                  beam is not supported with them",
+            ));
+        }
+        // The checks of every scene, with a stand-in sensor (the detectors replace it).
+        let stand_in = Sensor::Point {
+            position: detectors[0].center(),
+        };
+        let pairs = Pair::all(sources.len(), detectors.len());
+        let mut scene = Self::with_types(
+            medium,
+            phases,
+            wavelength,
+            sources,
+            vec![stand_in],
+            Pair::all(1, 1),
+        )?;
+        scene.sensors.clear();
+        scene.pairs = pairs;
+        scene.detectors = detectors;
+        Ok(scene)
+    }
+
+    /// The detectors, when the scene's sensors are detectors ([`Scene::with_detectors`]);
+    /// empty otherwise.
+    pub fn detectors(&self) -> &[Detector] {
+        &self.detectors
+    }
+
+    /// Whether the scene's sensors are detectors.
+    pub fn has_detectors(&self) -> bool {
+        !self.detectors.is_empty()
+    }
+
+    /// An error naming `sensors` when the scene's sensors are detectors, for the renders that
+    /// need field sensors.
+    pub fn check_field_sensors(&self) -> Result<(), SceneError> {
+        if self.has_detectors() {
+            return Err(invalid("sensors", DETECTORS_ONLY));
+        }
+        Ok(())
+    }
+
+    /// The path sampler of the detector estimators: `sampling`'s strategies with first vertices
+    /// around the point sources in or near the medium, which also sample the first direction
+    /// from the phase function about their leg ([`Tracer::with_point_directions`]). Paths are
+    /// forward only (a detector is reached by leaving the medium, not by a connection).
+    pub fn detector_tracer(&self, sampling: TracerConfig) -> Result<Tracer<'_, M, P>, SceneError> {
+        let points: Vec<_> = self
+            .sources
+            .iter()
+            .filter_map(Source::point_position)
+            .collect();
+        let tracer = Tracer::with_types(&self.medium, &self.phases, sampling)
+            .map_err(|e| invalid("render", e.to_string()))?;
+        let others = points.len() < self.sources.len();
+        Ok(tracer
+            .with_endpoints(&points, &[], &[], self.wavenumber(), others)
+            .with_point_directions())
     }
 
     /// The medium.
@@ -285,6 +375,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         coherence: Coherence,
         extra: &[DVec3],
     ) -> Result<Tracer<'_, M, P>, SceneError> {
+        self.check_field_sensors()?;
         let points: Vec<_> = (self.sources.iter().filter_map(Source::point_position))
             .chain(self.sensors.iter().filter_map(Sensor::point_position))
             .chain(extra.iter().copied())
@@ -356,6 +447,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// The speckle mean `E[u]` of `pair` (Eq. 20 and its far-field form; see
     /// [`speckle_endpoints::mean_field`]).
     pub fn mean(&self, pair: Pair) -> Result<Complex64, SceneError> {
+        self.check_field_sensors()?;
         Ok(speckle_endpoints::mean_field(
             &self.medium,
             &self.phases,
@@ -401,6 +493,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         M: Sync,
         P: Sync,
     {
+        self.check_field_sensors()?;
         let k = self.wavenumber();
         let each: Vec<Option<Complex64>> = self.pairs[pairs]
             .par_iter()
@@ -428,6 +521,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         M: Clone,
         P: Clone,
     {
+        self.check_field_sensors()?;
         Self::with_types(
             self.medium.clone(),
             self.phases.clone(),

@@ -3,7 +3,9 @@
 //! sensors, the layout of a sensor image, and the JSON the sidecars embed.
 
 use crate::SceneError;
-use crate::build::endpoints::{EndpointInfo, SensorGrid, build_sensors, build_sources};
+use crate::build::endpoints::{
+    EndpointInfo, SensorGrid, build_detectors, build_sensors, build_sources,
+};
 use crate::build::medium::{MediumFacts, build_medium};
 use crate::build::render::{OutputSettings, RenderSettings, coherence_name};
 use crate::build::{MAX_ENDPOINTS, medium::BuiltMedium};
@@ -278,13 +280,30 @@ impl Problem {
         )?;
         let bounds = *medium.bounds();
         let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
-        let (sensors, sensor_desc, grid) = build_sensors(&mut file.sensors, &bounds)?;
+        let host_index = file.medium.host_index.unwrap_or(1.0);
+        let detectors = build_detectors(&file.sensors, &medium, host_index)?;
+        let (sensors, sensor_desc, grid) = match &detectors {
+            Some((_, desc)) => (vec![], desc.clone(), None),
+            None => build_sensors(&mut file.sensors, &bounds)?,
+        };
         check_extents(&file, &source_desc, &sensor_desc, wavelength)?;
         check_extinction(&file, &medium, wavelength)?;
-        let (pairs, all_pairs) = pairs(file.pairs.as_deref(), sources.len(), sensors.len())?;
+        let n_sensors = sensor_desc.len();
+        if detectors.is_some() && file.pairs.is_some() {
+            return Err(invalid(
+                "pairs",
+                "detectors are rendered for every (source, detector) pair; remove `pairs`",
+            ));
+        }
+        let (pairs, all_pairs) = pairs(file.pairs.as_deref(), sources.len(), n_sensors)?;
         let render = RenderSettings::build(&file.render, &sources, dim)?;
         let output = OutputSettings::build(&file.output, access)?;
-        let scene = Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?;
+        let scene = match detectors {
+            Some((detectors, _)) => {
+                Scene::with_detectors(medium, phases, wavelength, sources, detectors)?
+            }
+            None => Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?,
+        };
         let motion = match &file.motion {
             Some(m) => Some(crate::build::motion::build(
                 m,
@@ -294,7 +313,11 @@ impl Problem {
             None => None,
         };
         // Check the sampling configuration against the medium now rather than at render time.
-        scene.tracer(render.sampling, render.coherence)?;
+        if scene.has_detectors() {
+            scene.detector_tracer(render.sampling)?;
+        } else {
+            scene.tracer(render.sampling, render.coherence)?;
+        }
         Ok(Self {
             file,
             name,
@@ -329,7 +352,7 @@ impl Problem {
 
     /// Number of expanded sensors.
     pub fn n_sensors(&self) -> usize {
-        self.scene.sensors().len()
+        self.scene.sensors().len() + self.scene.detectors().len()
     }
 
     /// The output directory.
@@ -443,6 +466,7 @@ impl Problem {
     /// The scene on its homogeneous box, for the wave solver; refuses grids (naming
     /// `medium.grid`).
     pub fn box_scene(&self) -> Result<Scene<HomogeneousBox, Phase>, SceneError> {
+        self.scene.check_field_sensors()?;
         let b = self.scene.medium().as_box().ok_or_else(|| {
             invalid(
                 "medium.grid",

@@ -312,6 +312,30 @@ pub enum SensorSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         numerical_aperture: Option<f64>,
     },
+    /// A disc detector on a face of the medium's box (the tip of an optical fibre, or with the
+    /// full aperture a photodiode): it reads the light leaving the medium through the disc
+    /// within its numerical aperture, integrated over many speckle grains (intensities and
+    /// temporal correlations only; docs/conventions.md, "Detectors"). A scene's sensors are
+    /// either all detectors or none.
+    Detector {
+        /// The centre of the disc, on a face of the medium's box.
+        position: [f64; 3],
+        /// The radius of the disc (> 0; the disc must lie on the face).
+        radius: f64,
+        /// The numerical aperture `n sin(theta_max)` in `(0, n]`, `n` the index outside (the
+        /// host's: the boundary is index-matched); `n`, every direction, when absent.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
+        /// The collection axis: the direction light travels into the detector, out of the
+        /// medium (the face's outward normal when absent).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+        /// `"flux"` (the default: light counted as it crosses the disc, as a fibre or MCX's
+        /// detector does) or `"fluence"` (each crossing weighed by `1 / cos`, the fluence at the
+        /// face that a point sensor reads).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        weighting: Option<WeightingSpec>,
+    },
     /// An `ny x nx` image of far-field directions `unit(tan(tx) e1 + tan(ty) e2 + c)` around
     /// `center = c`, with `e1 = unit(y x c)` (or `unit(x x c)` when `c` is along `y`),
     /// `e2 = c x e1`; `tx`, `ty` uniform over the inclusive ranges. Row-major, `ty` slow.
@@ -381,6 +405,16 @@ pub enum SensorSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         numerical_aperture: Option<f64>,
     },
+}
+
+/// `sensors[i].weighting` of a detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WeightingSpec {
+    /// The exitant flux through the disc.
+    Flux,
+    /// The fluence at the face (crossings weighed by `1 / cos`).
+    Fluence,
 }
 
 /// `[render]`: estimator settings.

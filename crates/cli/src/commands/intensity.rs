@@ -3,7 +3,7 @@
 use super::covariance::{Args, options};
 use super::*;
 use crate::error;
-use speckle::estimators::{CovarianceEstimate, render_intensity};
+use speckle::estimators::CovarianceEstimate;
 use speckle::scene::npy::encode_f8;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
@@ -12,9 +12,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(s) = run.shard {
         return shard(&p, Kind::Intensity, s, run, staged);
     }
-    let opts = options(&p);
-    let (est, wall) = run.timed(&p, opts.paths, "paths", error::estimator, |pr| {
-        render_intensity(&p.scene, &opts, pr)
+    let paths = options(&p).paths;
+    let (est, wall) = run.timed(&p, paths, "paths", error::runs, |pr| {
+        speckle::runs::intensity(&p, pr)
     })?;
     write(&p, staged, &est, wall)
 }

@@ -9,12 +9,12 @@
 
 use super::MAX_ENDPOINTS;
 use crate::SceneError;
-use crate::schema::{SensorSpec, SourceSpec};
+use crate::schema::{SensorSpec, SourceSpec, WeightingSpec};
 use crate::validate::{
     MIN_COMPONENT, direction, finite, flat_direction, generated_direction, invalid, position,
 };
 use serde::Serialize;
-use speckle_endpoints::{EndpointError, GaussianBeam, Sensor, Source};
+use speckle_endpoints::{Detector, EndpointError, GaussianBeam, Sensor, Source, Weighting};
 use speckle_medium::{Aabb, DVec3, Dimension};
 
 /// One expanded source or sensor, as the sidecars describe it.
@@ -55,6 +55,15 @@ pub struct EndpointInfo {
     /// A Gaussian beam's aperture concentration.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub concentration: Option<f64>,
+    /// A detector's radius.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// A detector's numerical aperture.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub numerical_aperture: Option<f64>,
+    /// A detector's weighting (`"flux"` or `"fluence"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub weighting: Option<&'static str>,
 }
 
 impl EndpointInfo {
@@ -371,6 +380,13 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
         let e = format!("sensors[{i}]");
         let f = |k: &str| format!("sensors[{i}].{k}");
         match s {
+            SensorSpec::Detector { .. } => {
+                return Err(invalid(
+                    e,
+                    "a scene's sensors are either all detectors or none: detectors read \
+                     intensities and temporal correlations, the other sensors fields",
+                ));
+            }
             SensorSpec::Far { direction: d } => {
                 let d = flat_direction(&f("direction"), *d, dim)?;
                 out.push(Sensor::FarField { direction: d });
@@ -548,6 +564,84 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
         _ => None,
     };
     Ok((out, desc, grid))
+}
+
+/// The detectors of `[[sensors]]` when every entry is a `detector` (`None` when none is),
+/// validated against `medium` with the index `host_index` outside its faces; an error naming
+/// the entry when detectors and other sensors are mixed.
+pub fn build_detectors<M: speckle_medium::Medium>(
+    specs: &[SensorSpec],
+    medium: &M,
+    host_index: f64,
+) -> Result<Option<(Vec<Detector>, Vec<EndpointInfo>)>, SceneError> {
+    let is_detector = |s: &SensorSpec| matches!(s, SensorSpec::Detector { .. });
+    if !specs.iter().any(is_detector) {
+        return Ok(None);
+    }
+    if let Some(i) = specs.iter().position(|s| !is_detector(s)) {
+        return Err(invalid(
+            format!("sensors[{i}]"),
+            "a scene's sensors are either all detectors or none: detectors read intensities \
+             and temporal correlations, the other sensors fields",
+        ));
+    }
+    if specs.len() > MAX_ENDPOINTS {
+        return Err(invalid(
+            "sensors",
+            format!("more than {MAX_ENDPOINTS} sensors"),
+        ));
+    }
+    if !(host_index.is_finite() && host_index >= 1.0) {
+        return Err(invalid(
+            "medium.host_index",
+            format!(
+                "must be finite and >= 1 with detectors (the index outside the faces, in which \
+                 their aperture is defined; got {host_index})"
+            ),
+        ));
+    }
+    let (mut out, mut desc) = (Vec::new(), Vec::new());
+    for (i, s) in specs.iter().enumerate() {
+        let SensorSpec::Detector {
+            position,
+            radius,
+            numerical_aperture,
+            axis,
+            weighting,
+        } = s
+        else {
+            unreachable!("every entry is a detector");
+        };
+        let weighting = match weighting.unwrap_or(WeightingSpec::Flux) {
+            WeightingSpec::Flux => Weighting::Flux,
+            WeightingSpec::Fluence => Weighting::Fluence,
+        };
+        let d = Detector::new(
+            &format!("sensors[{i}]"),
+            medium,
+            DVec3::from_array(*position),
+            *radius,
+            numerical_aperture.unwrap_or(host_index),
+            axis.map(DVec3::from_array),
+            host_index,
+            weighting,
+        )?;
+        desc.push(EndpointInfo {
+            entry: i,
+            kind: "detector",
+            position: Some(d.center().to_array()),
+            direction: Some(d.axis().to_array()),
+            radius: Some(d.radius()),
+            numerical_aperture: Some(d.numerical_aperture()),
+            weighting: Some(match d.weighting() {
+                Weighting::Flux => "flux",
+                Weighting::Fluence => "fluence",
+            }),
+            ..EndpointInfo::default()
+        });
+        out.push(d);
+    }
+    Ok(Some((out, desc)))
 }
 
 #[cfg(test)]

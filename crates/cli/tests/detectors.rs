@@ -1,0 +1,174 @@
+//! End-to-end tests of detector sensors (fibres, issue 25): `speckle g1` and `speckle
+//! intensity` render them, with `C(0)` of `g1` bitwise the intensity of the same seed; the other
+//! commands refuse them naming `sensors`; bad input exits with code 2 naming the field.
+
+mod common;
+use common::*;
+
+/// The tissue-like cube with a point source and a fibre on the face `z = 0`; `{detector}` is
+/// replaced by the detector's keys and `{medium}` by extra medium keys.
+const SCENE: &str = r#"
+name = "f"
+wavelength = 500e-7
+
+[medium]
+size = [1.0, 1.0, 1.0]
+center = [0.0, 0.0, 0.5]
+sigma_s = 20.0
+sigma_a = 0.1
+{medium}
+
+[phase]
+type = "hg"
+g = 0.8
+
+[[sources]]
+type = "point"
+position = [-0.1, 0.0, 0.0]
+
+[[sensors]]
+type = "detector"
+{detector}
+
+[motion]
+diffusion = 1e-7
+lags = [0.0, 1e-6, 1e-5]
+
+[render]
+paths = 20000
+seed = 4
+"#;
+
+const FIBRE: &str = "position = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5";
+
+fn scene(detector: &str, medium: &str) -> String {
+    SCENE
+        .replace("{detector}", detector)
+        .replace("{medium}", medium)
+}
+
+#[test]
+fn g1_and_intensity_render_detectors_and_agree_at_lag_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(dir.path(), "f.toml", &scene(FIBRE, ""));
+    let s = s.to_str().unwrap();
+    let o = speckle(dir.path(), &["g1", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = speckle(dir.path(), &["intensity", s, "--out", "out", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("out");
+    let c = npy_f64(&out.join("f.correlation.npy"));
+    let i = npy_f64(&out.join("f.intensity.npy"));
+    let g = npy_f64(&out.join("f.g1.npy"));
+    // Complex arrays read as (re, im) pairs.
+    assert_eq!(c[0], i[0], "C(0) is the reading");
+    assert!(i[0] > 0.0);
+    assert_eq!((g[0], g[1]), (1.0, 0.0));
+    assert!(g[2] < 1.0 && g[4] < g[2] && g[4] > 0.0, "{g:?}");
+}
+
+#[test]
+fn field_commands_refuse_detectors_naming_sensors() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(dir.path(), "f.toml", &scene(FIBRE, ""));
+    let s = s.to_str().unwrap();
+    for cmd in ["covariance", "fields", "mean", "single", "wave", "map"] {
+        let o = speckle(dir.path(), &[cmd, s, "--out", "out", "-q"]);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {}", stderr(&o));
+        assert!(stderr(&o).contains("sensors"), "{cmd}: {}", stderr(&o));
+    }
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn bad_detectors_exit_2_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.0",
+            "",
+            "sensors[0].radius",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = -0.1",
+            "",
+            "sensors[0].radius",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = nan",
+            "",
+            "sensors[0].radius",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.6",
+            "",
+            "sensors[0].radius",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.0",
+            "",
+            "sensors[0].numerical_aperture",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 1.2",
+            "",
+            "sensors[0].numerical_aperture",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = nan",
+            "",
+            "sensors[0].numerical_aperture",
+        ),
+        (
+            "position = [0.1, 0.0, 0.3]\nradius = 0.05",
+            "",
+            "sensors[0].position",
+        ),
+        (
+            "position = [0.1, 0.0, -2.0]\nradius = 0.05",
+            "",
+            "sensors[0].position",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05\naxis = [0.0, 0.0, 1.0]",
+            "",
+            "sensors[0].axis",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05\nweighting = \"radiance\"",
+            "",
+            "weighting",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05",
+            "host_index = 0.5",
+            "host_index",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nradius = 0.05",
+            "host_index = nan",
+            "host_index",
+        ),
+    ];
+    for (detector, medium, field) in cases {
+        let s = write(dir.path(), "bad.toml", &scene(detector, medium));
+        let o = speckle(dir.path(), &["g1", s.to_str().unwrap(), "-q"]);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{detector} {medium}: {}",
+            stderr(&o)
+        );
+        assert!(
+            stderr(&o).contains(field),
+            "{detector} {medium}: expected {field} in {}",
+            stderr(&o)
+        );
+    }
+    // Detectors and other sensors together.
+    let mixed = scene(FIBRE, "") + "\n[[sensors]]\ntype = \"point\"\nposition = [0.0, 0.0, 0.0]\n";
+    let s = write(dir.path(), "mixed.toml", &mixed);
+    let o = speckle(dir.path(), &["g1", s.to_str().unwrap(), "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("sensors[1]"), "{}", stderr(&o));
+}

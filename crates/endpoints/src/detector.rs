@@ -1,0 +1,357 @@
+//! The detector kind: a disc on a face of the medium's box that collects the light leaving the
+//! medium through it within a numerical aperture, as the tip of an optical fibre or (with the
+//! largest aperture) a bare photodiode does.
+//!
+//! Unlike the field endpoints of this crate, a detector is not a coherent sensor: it integrates
+//! intensity over an area of many speckle grains and over a cone of directions, so it has a
+//! reading and temporal correlations (`g1`, `g2`, `K(T)`) but no field covariance with other
+//! endpoints. The estimators register it where paths leave the medium (light tracing:
+//! `speckle_estimators::render_detectors`), so its estimate has bounded variance for any radius,
+//! where a next-event connection to a point on the face collects only the vertices within about
+//! a mean free path of it.
+//!
+//! # What a detector reads (docs/conventions.md, "Detectors")
+//!
+//! With `L(y, w)` the radiance (in the units of `|u|^2` per steradian: a point source of unit
+//! amplitude radiates one unit per steradian) leaving the medium at `y` of the disc `A` along `w`,
+//! `n` the face's outward normal and `a` the collection axis:
+//!
+//! - [`Weighting::Flux`] (the default; what a fibre or a photodiode measures, and what MCX's
+//!   detector counts): `(1 / |A|) int_A int_{w . a >= cos theta_max} L(y, w) (w . n) dw dA`, the
+//!   mean exitant irradiance over the disc within the aperture;
+//! - [`Weighting::Fluence`]: `(1 / |A|) int_A int L(y, w) dw dA`, which for a small disc and the
+//!   full aperture is the intensity `E |u|^2` a point sensor at the centre reads.
+//!
+//! The acceptance half-angle is `theta_max = asin(NA / n_out)`, measured outside the face, where
+//! the index `n_out` is the host's (the boundary is index-matched: no refraction).
+
+use crate::{EndpointError, check};
+use glam::DVec3;
+use speckle_medium::{Dimension, Medium};
+
+/// Relative tolerance (of the box's largest edge) within which a detector's centre counts as
+/// lying on a face.
+pub const ON_FACE_TOLERANCE: f64 = 1e-9;
+
+/// How a [`Detector`] weighs the light it collects (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Weighting {
+    /// The exitant flux through the disc per unit area (light counted as it crosses the face).
+    #[default]
+    Flux,
+    /// The radiance integrated over directions (each crossing weighed by `1 / |cos|` to the
+    /// face normal): the fluence at the face, what a point sensor there reads.
+    Fluence,
+}
+
+/// A disc detector on a face of the medium's box (an optical fibre's tip). Build it with
+/// [`Detector::new`], which validates it against the medium.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detector {
+    center: DVec3,
+    normal: DVec3,
+    axis: DVec3,
+    radius: f64,
+    numerical_aperture: f64,
+    outside_index: f64,
+    cos_max: f64,
+    weighting: Weighting,
+    /// Distance from the face's plane within which an exit point lies on it.
+    tol: f64,
+}
+
+impl Detector {
+    /// A detector of `radius` centred at `center` on a face of `medium`'s box, collecting the
+    /// light that leaves within the numerical aperture `numerical_aperture` about `axis` (the
+    /// direction light travels into the detector; the face's outward normal when `None`), into
+    /// an outside medium of index `outside_index`. Errors name `field` and its keys.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new<M: Medium>(
+        field: &str,
+        medium: &M,
+        center: DVec3,
+        radius: f64,
+        numerical_aperture: f64,
+        axis: Option<DVec3>,
+        outside_index: f64,
+        weighting: Weighting,
+    ) -> Result<Self, EndpointError> {
+        if medium.dimension() != Dimension::Three {
+            return Err(check::invalid(
+                field,
+                "detectors need a 3D scene (dimension = 3)",
+            ));
+        }
+        if !center.is_finite() {
+            return Err(check::invalid(
+                format!("{field}.position"),
+                format!("must be finite (got {center})"),
+            ));
+        }
+        if !(radius.is_finite() && radius > 0.0) {
+            return Err(check::invalid(
+                format!("{field}.radius"),
+                format!("must be finite and > 0 (got {radius})"),
+            ));
+        }
+        if !(outside_index.is_finite() && outside_index >= 1.0) {
+            return Err(check::invalid(
+                format!("{field}.numerical_aperture"),
+                format!("the outside index must be finite and >= 1 (got {outside_index})"),
+            ));
+        }
+        if !(numerical_aperture.is_finite()
+            && numerical_aperture > 0.0
+            && numerical_aperture <= outside_index)
+        {
+            return Err(check::invalid(
+                format!("{field}.numerical_aperture"),
+                format!(
+                    "must be in (0, n] with n = {outside_index}, the index outside the face \
+                     (got {numerical_aperture})"
+                ),
+            ));
+        }
+        let b = medium.bounds();
+        let tol = ON_FACE_TOLERANCE * b.size().max_element();
+        let (lo, hi) = (b.min(), b.max());
+        // The face the centre lies on: its axis and side.
+        let face = (0..3).find_map(|a| {
+            let inside = |c: usize| center[c] >= lo[c] - tol && center[c] <= hi[c] + tol;
+            let others = (0..3).filter(|&c| c != a).all(inside);
+            if !others {
+                None
+            } else if (center[a] - lo[a]).abs() <= tol {
+                Some((a, -1.0))
+            } else if (center[a] - hi[a]).abs() <= tol {
+                Some((a, 1.0))
+            } else {
+                None
+            }
+        });
+        let Some((a, side)) = face else {
+            return Err(check::invalid(
+                format!("{field}.position"),
+                format!(
+                    "{center} is on no face of the medium's box [{lo}, {hi}]: a detector sits \
+                     on the boundary, where light leaves the medium"
+                ),
+            ));
+        };
+        let mut normal = DVec3::ZERO;
+        normal[a] = side;
+        let mut center = center;
+        center[a] = if side < 0.0 { lo[a] } else { hi[a] };
+        // The disc must lie on the face.
+        for c in (0..3).filter(|&c| c != a) {
+            if center[c] - radius < lo[c] - tol || center[c] + radius > hi[c] + tol {
+                return Err(check::invalid(
+                    format!("{field}.radius"),
+                    format!(
+                        "a disc of radius {radius} about {center} reaches past the edge of its \
+                         face"
+                    ),
+                ));
+            }
+        }
+        let axis = match axis {
+            None => normal,
+            Some(d) => {
+                let n = d.length();
+                if !(d.is_finite() && n > 0.0) {
+                    return Err(check::invalid(
+                        format!("{field}.axis"),
+                        format!("must be a finite non-zero vector (got {d})"),
+                    ));
+                }
+                let d = d / n;
+                if d.dot(normal) <= 0.0 {
+                    return Err(check::invalid(
+                        format!("{field}.axis"),
+                        format!(
+                            "must point out of the medium (light travels along it into the \
+                             detector; the face's outward normal is {normal}, got {d})"
+                        ),
+                    ));
+                }
+                d
+            }
+        };
+        let sin_max = numerical_aperture / outside_index;
+        let cos_max = (1.0 - sin_max * sin_max).max(0.0).sqrt();
+        Ok(Self {
+            center,
+            normal,
+            axis,
+            radius,
+            numerical_aperture,
+            outside_index,
+            cos_max,
+            weighting,
+            tol,
+        })
+    }
+
+    /// The centre of the disc (on the face).
+    pub fn center(&self) -> DVec3 {
+        self.center
+    }
+
+    /// The outward normal of the detector's face.
+    pub fn normal(&self) -> DVec3 {
+        self.normal
+    }
+
+    /// The collection axis (unit, pointing out of the medium).
+    pub fn axis(&self) -> DVec3 {
+        self.axis
+    }
+
+    /// The radius of the disc.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The numerical aperture.
+    pub fn numerical_aperture(&self) -> f64 {
+        self.numerical_aperture
+    }
+
+    /// The index of the medium outside the face, in which the aperture is defined.
+    pub fn outside_index(&self) -> f64 {
+        self.outside_index
+    }
+
+    /// The cosine of the acceptance half-angle about the axis.
+    pub fn cos_acceptance(&self) -> f64 {
+        self.cos_max
+    }
+
+    /// How the detector weighs what it collects.
+    pub fn weighting(&self) -> Weighting {
+        self.weighting
+    }
+
+    /// The area of the disc, `pi r^2`.
+    pub fn area(&self) -> f64 {
+        std::f64::consts::PI * self.radius * self.radius
+    }
+
+    /// The detector's weight of light leaving the medium at `point` (on the boundary) along the
+    /// unit direction `dir`: 0 outside the disc or the aperture, else `1 / |A|` (flux) or
+    /// `1 / (|A| dir . n)` (fluence), so that the sum over exits of path weight times this is
+    /// the reading of the module docs.
+    #[inline]
+    pub fn read(&self, point: DVec3, dir: DVec3) -> f64 {
+        let cos_n = dir.dot(self.normal);
+        if cos_n <= 0.0 || dir.dot(self.axis) < self.cos_max {
+            return 0.0;
+        }
+        let off = point - self.center;
+        // On the face's plane (the exit point of a flight through another face is not).
+        if off.dot(self.normal).abs() > self.tol {
+            return 0.0;
+        }
+        if off.length_squared() > self.radius * self.radius {
+            return 0.0;
+        }
+        match self.weighting {
+            Weighting::Flux => 1.0 / self.area(),
+            Weighting::Fluence => 1.0 / (self.area() * cos_n),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use speckle_medium::{Aabb, HomogeneousBox};
+
+    fn cube() -> HomogeneousBox {
+        let b = Aabb::new(DVec3::new(-0.5, -0.5, 0.0), DVec3::new(0.5, 0.5, 1.0)).unwrap();
+        HomogeneousBox::new(b, 10.0, 0.0).unwrap()
+    }
+
+    fn det(c: DVec3, r: f64, na: f64, axis: Option<DVec3>) -> Result<Detector, EndpointError> {
+        Detector::new("sensors[0]", &cube(), c, r, na, axis, 1.0, Weighting::Flux)
+    }
+
+    #[test]
+    fn finds_its_face_and_reads_within_disc_and_aperture() {
+        let d = det(DVec3::new(0.25, 0.0, 0.0), 0.05, 0.5, None).unwrap();
+        assert_eq!(d.normal(), -DVec3::Z);
+        assert!((d.cos_acceptance() - 0.75f64.sqrt()).abs() < 1e-15);
+        let a = d.area();
+        let down = -DVec3::Z;
+        assert_eq!(d.read(DVec3::new(0.27, 0.02, 0.0), down), 1.0 / a);
+        // Outside the disc, the aperture (30 degrees), or leaving inwards.
+        assert_eq!(d.read(DVec3::new(0.31, 0.0, 0.0), down), 0.0);
+        let tilted = DVec3::new(0.6, 0.0, -0.8);
+        assert_eq!(d.read(DVec3::new(0.25, 0.0, 0.0), tilted), 0.0);
+        assert_eq!(d.read(DVec3::new(0.25, 0.0, 0.0), DVec3::Z), 0.0);
+        // A point of another face in line with the disc is not on it.
+        assert_eq!(d.read(DVec3::new(0.25, 0.0, 1.0), down), 0.0);
+        // Fluence weighs by 1 / cos.
+        let f = Detector::new(
+            "d",
+            &cube(),
+            DVec3::new(0.25, 0.0, 0.0),
+            0.05,
+            1.0,
+            None,
+            1.0,
+            Weighting::Fluence,
+        )
+        .unwrap();
+        let w = DVec3::new(0.6, 0.0, -0.8);
+        assert!((f.read(DVec3::new(0.25, 0.0, 0.0), w) - 1.0 / (a * 0.8)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn refuses_bad_input_naming_the_field() {
+        let on = DVec3::new(0.25, 0.0, 0.0);
+        let msg = |r: Result<Detector, EndpointError>| r.unwrap_err().to_string();
+        assert!(msg(det(on, 0.0, 0.5, None)).starts_with("sensors[0].radius"));
+        assert!(msg(det(on, -1.0, 0.5, None)).starts_with("sensors[0].radius"));
+        assert!(msg(det(on, f64::NAN, 0.5, None)).starts_with("sensors[0].radius"));
+        for na in [0.0, -0.1, 1.01, f64::NAN, f64::INFINITY] {
+            let m = msg(det(on, 0.05, na, None));
+            assert!(m.starts_with("sensors[0].numerical_aperture"), "{m}");
+        }
+        let m = msg(det(DVec3::new(0.25, 0.0, 0.3), 0.05, 0.5, None));
+        assert!(
+            m.starts_with("sensors[0].position") && m.contains("no face"),
+            "{m}"
+        );
+        let m = msg(det(DVec3::new(0.25, 0.0, -0.1), 0.05, 0.5, None));
+        assert!(m.starts_with("sensors[0].position"), "{m}");
+        let m = msg(det(DVec3::new(0.48, 0.0, 0.0), 0.05, 0.5, None));
+        assert!(
+            m.starts_with("sensors[0].radius") && m.contains("edge"),
+            "{m}"
+        );
+        let m = msg(det(on, 0.05, 0.5, Some(DVec3::Z)));
+        assert!(m.starts_with("sensors[0].axis"), "{m}");
+        let m = msg(det(on, 0.05, 0.5, Some(DVec3::ZERO)));
+        assert!(m.starts_with("sensors[0].axis"), "{m}");
+        let nan = DVec3::new(f64::NAN, 0.0, 0.0);
+        assert!(msg(det(nan, 0.05, 0.5, None)).starts_with("sensors[0].position"));
+        let flat = HomogeneousBox::new(
+            Aabb::flat(glam::DVec2::ZERO, glam::DVec2::ONE).unwrap(),
+            1.0,
+            0.0,
+        )
+        .unwrap();
+        let e = Detector::new(
+            "d",
+            &flat,
+            DVec3::ZERO,
+            0.1,
+            0.5,
+            None,
+            1.0,
+            Weighting::Flux,
+        );
+        assert!(e.unwrap_err().to_string().contains("3D"));
+    }
+}
