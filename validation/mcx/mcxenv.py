@@ -1,4 +1,5 @@
-"""The environment the MCX-CL comparisons run in (shared by `compare.py` and `dcs.py`).
+"""The environment the MCX-CL comparisons run in (shared by `compare.py`, `dcs.py` and
+`tissue.py`).
 
 MCX-CL's Python module (`pmcxcl`, which bundles an OpenCL ICD loader) and Intel's CPU OpenCL
 runtime (`intel-opencl-rt`, `intel-cmplr-lib-rt`) come from PyPI into a virtual environment; a
