@@ -137,7 +137,7 @@ fn bad_detectors_exit_2_naming_the_field() {
         (
             "position = [0.1, 0.0, 0.0]\nradius = 0.05\nweighting = \"radiance\"",
             "",
-            "weighting",
+            "sensors[0]: unknown variant `radiance`, expected `flux` or `fluence`",
         ),
         (
             "position = [0.1, 0.0, 0.0]\nradius = 0.05",

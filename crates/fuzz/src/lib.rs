@@ -469,7 +469,7 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
                 let deadline = Deadline(Instant::now() + Duration::from_secs(HANG_SECONDS / 2));
                 if p.scene.has_detectors() {
                     let motion = Some((&m.model, m.lags.as_slice()));
-                    detectors_finite(&p, motion, &opts, &deadline, "g1 correlation")?;
+                    detectors_finite(p, motion, &opts, &deadline, "g1 correlation")?;
                     return Ok(());
                 }
                 let entries = speckle::estimators::Entries::Diagonal;
@@ -509,7 +509,7 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
         };
         let deadline = Deadline(Instant::now() + Duration::from_secs(HANG_SECONDS / 2));
         if p.scene.has_detectors() {
-            return detectors_finite(&p, None, &opts, &deadline, "detector reading");
+            return detectors_finite(p, None, &opts, &deadline, "detector reading");
         }
         match render_intensity(&p.scene, &opts, &deadline) {
             Ok(est) => {

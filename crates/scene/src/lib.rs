@@ -299,7 +299,8 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         let others = points.len() < self.sources.len();
         Ok(tracer
             .with_endpoints(&points, &[], &[], self.wavenumber(), others)
-            .with_point_directions())
+            .with_point_directions()
+            .without_both_orders())
     }
 
     /// The medium.

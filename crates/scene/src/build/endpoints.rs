@@ -566,6 +566,9 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
     Ok((out, desc, grid))
 }
 
+/// Built detectors and their descriptions.
+pub type BuiltDetectors = (Vec<Detector>, Vec<EndpointInfo>);
+
 /// The detectors of `[[sensors]]` when every entry is a `detector` (`None` when none is),
 /// validated against `medium` with the index `host_index` outside its faces; an error naming
 /// the entry when detectors and other sensors are mixed.
@@ -573,7 +576,7 @@ pub fn build_detectors<M: speckle_medium::Medium>(
     specs: &[SensorSpec],
     medium: &M,
     host_index: f64,
-) -> Result<Option<(Vec<Detector>, Vec<EndpointInfo>)>, SceneError> {
+) -> Result<Option<BuiltDetectors>, SceneError> {
     let is_detector = |s: &SensorSpec| matches!(s, SensorSpec::Detector { .. });
     if !specs.iter().any(is_detector) {
         return Ok(None);

@@ -1,0 +1,260 @@
+//! Unit tests of the tracer.
+
+use super::*;
+use speckle_medium::{Aabb, HomogeneousBox};
+use speckle_phase::Phase;
+
+struct Count {
+    single: f64,
+    vertices: Vec<f64>,
+}
+impl VertexSink for Count {
+    fn first(&mut self, _x1: DVec3, _ty: usize, weight: f64, _rng: &mut PathRng) {
+        self.single += weight;
+    }
+    fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+        let i = v.index as usize - 2;
+        if self.vertices.len() <= i {
+            self.vertices.resize(i + 1, 0.0);
+        }
+        self.vertices[i] += v.weight;
+    }
+}
+
+#[test]
+fn weights_match_the_scattering_volume() {
+    // The mean single-scattering weight is V = sigma_s |box|; a second vertex occurs with
+    // probability P2 (flight stays inside, survives roulette), and the weight there is 4 pi V.
+    let b = Aabb::new(DVec3::ZERO, DVec3::new(2.0, 3.0, 4.0)).unwrap();
+    let m = HomogeneousBox::new(b, 0.5, 0.25).unwrap();
+    let t = Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap();
+    let mut c = Count {
+        single: 0.0,
+        vertices: vec![],
+    };
+    let n = 20_000;
+    for i in 0..n {
+        t.trace(&mut PathRng::new(5, i), &mut c);
+    }
+    let v = 0.5 * 24.0;
+    assert!((c.single / n as f64 - v).abs() < 1e-9 * v);
+    let w2 = c.vertices[0] / n as f64 / (4.0 * std::f64::consts::PI * v);
+    // Survival to x2 is at most the albedo 2/3.
+    assert!(w2 > 0.1 && w2 < 2.0 / 3.0, "{w2}");
+}
+
+#[test]
+fn a_camera_mixture_weighs_first_vertices_by_its_density() {
+    // E[sigma_s / p(x1)] = sigma_s |box| for any density p that covers the box. Past the
+    // beam cap (a line camera of 18 pixels and two sources) the density must be the one
+    // sampled: shares by kind (a third each for the volume, the sources' beams and the
+    // pixels'), positions for the pixels, directions for the sources. Writing the volume's
+    // share as 1 / (n + 1) in the density, as below the cap, moves the mean by a factor of
+    // several, and a beam density 10% high by 5 SE.
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 3.0)).unwrap();
+    let sigma_s = 1.0 / 3.0;
+    let m = HomogeneousBox::new(b, sigma_s, 0.0).unwrap();
+    let beam = |x: f64, z: f64, axis: DVec3| Beam {
+        focus: DVec3::new(x, 0.0, z),
+        axis,
+        concentration: 16.0,
+    };
+    let sources = [beam(0.0, -1.5, DVec3::Z), beam(1.0, -1.5, DVec3::Z)];
+    let camera: Vec<Beam> = (0..18)
+        .map(|i| beam(0.2 * i as f64 - 1.0, 1.5, -DVec3::Z))
+        .collect();
+    let cfg = TracerConfig {
+        beams: BeamStrategy::PositionAndDirection,
+        ..TracerConfig::default()
+    };
+    let t = Tracer::new(&m, &Phase::Isotropic, cfg)
+        .unwrap()
+        .with_endpoints(&[], &sources, &camera, std::f64::consts::TAU, true);
+    let p = t.points.as_ref().unwrap();
+    assert_eq!((p.volume, p.groups.len()), (1.0 / 3.0, 2));
+    struct Moments(f64, f64);
+    impl VertexSink for Moments {
+        fn first(&mut self, _x1: DVec3, _ty: usize, w: f64, _rng: &mut PathRng) {
+            self.0 += w;
+            self.1 += w * w;
+        }
+        fn vertex(&mut self, _v: &Vertex, _rng: &mut PathRng) {}
+    }
+    let mut s = Moments(0.0, 0.0);
+    let n = 100_000;
+    for i in 0..n {
+        t.trace(&mut PathRng::new(9, i), &mut s);
+    }
+    let n = n as f64;
+    let mean = s.0 / n;
+    let se = ((s.1 / n - mean * mean) / n).sqrt();
+    let v = sigma_s * 300.0;
+    assert!(se < 0.01 * v, "unresolved: {mean} +- {se}");
+    assert!((mean - v).abs() < 4.5 * se, "{mean} +- {se} against {v}");
+}
+
+#[test]
+fn flatland_paths_stay_in_the_plane_with_circle_weights() {
+    // V = sigma_s * area; the weight at x2 and beyond is 2 pi V (uniform first angle).
+    struct InPlane(u64, f64);
+    impl VertexSink for InPlane {
+        fn first(&mut self, x1: DVec3, _ty: usize, _w: f64, _rng: &mut PathRng) {
+            assert_eq!(x1.z, 0.0);
+        }
+        fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+            assert!(v.x.z == 0.0 && v.w_in.z == 0.0 && v.w12.z == 0.0);
+            self.0 += 1;
+            self.1 = v.weight;
+        }
+    }
+    let b = Aabb::flat(glam::DVec2::ZERO, glam::DVec2::new(2.0, 3.0)).unwrap();
+    let m = HomogeneousBox::new(b, 0.5, 0.0).unwrap();
+    for p in [Phase::FlatIsotropic, Phase::flat_hg(0.6).unwrap()] {
+        let t = Tracer::new(&m, &p, TracerConfig::default()).unwrap();
+        let mut sink = InPlane(0, 0.0);
+        for i in 0..2000 {
+            t.trace(&mut PathRng::new(3, i), &mut sink);
+        }
+        assert!(sink.0 > 100);
+        let expect = 2.0 * std::f64::consts::PI * 0.5 * 6.0;
+        assert!((sink.1 - expect).abs() < 1e-12 * expect);
+    }
+    // A 3D phase function in a flatland medium, and the reverse, are refused.
+    let e = Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap_err();
+    assert!(matches!(e, PathError::DimensionMismatch { .. }), "{e}");
+    let m3 = HomogeneousBox::new(Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap(), 1.0, 0.0).unwrap();
+    assert!(Tracer::new(&m3, &Phase::FlatIsotropic, TracerConfig::default()).is_err());
+    // Out-of-plane strategy directions are refused.
+    let cfg = TracerConfig {
+        first_direction: FirstDirection::Phase { axis: DVec3::Z },
+        ..TracerConfig::default()
+    };
+    let e = Tracer::new(&m, &Phase::FlatIsotropic, cfg).unwrap_err();
+    assert!(matches!(e, PathError::NotInPlane { .. }), "{e}");
+}
+
+#[test]
+fn point_components_are_kept_for_points_in_the_medium_beyond_the_cap() {
+    let b = Aabb::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0)).unwrap();
+    let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+    let t = || Tracer::new(&m, &Phase::Isotropic, TracerConfig::default()).unwrap();
+    // A camera grid half an extinction length above the box: components up to the cap.
+    let grid: Vec<DVec3> = (0..MAX_OUTSIDE_COMPONENTS + 1)
+        .map(|i| DVec3::new(0.05 * i as f64, 1.0, 2.5))
+        .collect();
+    let few = t().with_point_endpoints(&grid[..MAX_OUTSIDE_COMPONENTS], true);
+    assert_eq!(
+        few.points.as_ref().unwrap().points.len(),
+        MAX_OUTSIDE_COMPONENTS
+    );
+    assert!(!t().with_point_endpoints(&grid, true).needs_reversed_paths());
+    // Beyond the cap a point on the face keeps its component, and the volume its share.
+    let mut with_face = grid.clone();
+    with_face.push(DVec3::new(1.0, 1.0, 2.0));
+    let p = t().with_point_endpoints(&with_face, false).points.unwrap();
+    assert_eq!(p.points, vec![DVec3::new(1.0, 1.0, 2.0)]);
+    assert!(p.volume > 0.0);
+    // Points alone, all near: no volume share; a far point restores it.
+    let alone = t().with_point_endpoints(&grid[..2], false).points.unwrap();
+    assert_eq!(alone.volume, 0.0);
+    let far = [grid[0], DVec3::new(0.0, 0.0, 9.0)];
+    assert_eq!(
+        t().with_point_endpoints(&far, false).points.unwrap().volume,
+        0.5
+    );
+}
+
+#[test]
+fn beam_components_are_distinct_capped_and_need_no_reversed_paths() {
+    let b = Aabb::new(DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0)).unwrap();
+    let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+    let t = |beams| {
+        let cfg = TracerConfig {
+            beams,
+            ..TracerConfig::default()
+        };
+        Tracer::new(&m, &Phase::Isotropic, cfg).unwrap()
+    };
+    let beam = |x: f64| Beam {
+        focus: DVec3::new(x, 2.0, 0.0),
+        axis: DVec3::Z,
+        concentration: 16.0,
+    };
+    let k = std::f64::consts::TAU;
+    // A source and a sensor with the same source form count once; the volume keeps 1/(n+1).
+    let one = t(BeamStrategy::Position).with_endpoints(&[], &[beam(1.0)], &[beam(1.0)], k, false);
+    assert!(!one.needs_reversed_paths());
+    let p = one.points.as_ref().unwrap();
+    assert_eq!((p.beams.len(), p.volume), (1, 0.5));
+    // Off: no mixture at all (the tracer is the plain one).
+    let off = t(BeamStrategy::Off).with_endpoints(&[], &[beam(1.0)], &[], k, true);
+    assert!(off.points.is_none());
+    // Which beams sample directions (the isotropic phase function has one lobe).
+    let directed = |t: &Tracer<_, _>| {
+        let p = t.points.as_ref().unwrap();
+        let d = p.beams.iter().filter(|b| b.samples_directions()).count();
+        (p.beams.len(), d)
+    };
+    // A camera of sensors beyond the cap: every beam a position component, the sources'
+    // also sampling directions.
+    let camera: Vec<Beam> = (0..MAX_BEAM_COMPONENTS)
+        .map(|i| beam(0.1 * i as f64))
+        .collect();
+    let src = [beam(3.0), beam(3.5)];
+    let capped = t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &camera, k, true);
+    assert_eq!(directed(&capped), (MAX_BEAM_COMPONENTS + 2, 2));
+    // Shares by kind: the volume, the sources' beams, the camera's.
+    let p = capped.points.as_ref().unwrap();
+    let third = 1.0 / 3.0;
+    assert_eq!(p.volume, third);
+    assert_eq!(p.groups, [(2, third), (MAX_BEAM_COMPONENTS + 2, third)]);
+    let kept = t(BeamStrategy::PositionAndDirection).with_endpoints(
+        &[],
+        &src,
+        &camera[..MAX_BEAM_COMPONENTS - 2],
+        k,
+        true,
+    );
+    assert_eq!(directed(&kept), (MAX_BEAM_COMPONENTS, MAX_BEAM_COMPONENTS));
+    let volume = kept.points.as_ref().unwrap().volume;
+    assert_eq!(volume, 1.0 / (MAX_BEAM_COMPONENTS + 1) as f64);
+    // More sources than the cap: positions only.
+    let many_sources = [&camera[..], &src[..1]].concat();
+    let many =
+        t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &many_sources, &[], k, true);
+    assert_eq!(directed(&many), (MAX_BEAM_COMPONENTS + 1, 0));
+    // Past the position cap: the sources' beams alone, and none past it in sources.
+    let huge: Vec<Beam> = (0..=MAX_POSITION_BEAMS)
+        .map(|i| beam(1e-3 * i as f64))
+        .collect();
+    let big = t(BeamStrategy::PositionAndDirection).with_endpoints(&[], &src, &huge, k, true);
+    assert_eq!(directed(&big), (2, 2));
+    let none = t(BeamStrategy::Position).with_endpoints(&[], &huge, &[], k, true);
+    assert!(none.points.is_none());
+}
+
+#[test]
+fn rejects_bad_configuration() {
+    let b = Aabb::new(DVec3::ZERO, DVec3::ONE).unwrap();
+    let m = HomogeneousBox::new(b, 1.0, 0.0).unwrap();
+    let p = Phase::Isotropic;
+    let cfg = |fv, fd, n| TracerConfig {
+        first_vertex: fv,
+        first_direction: fd,
+        beams: BeamStrategy::Off,
+        max_vertices: n,
+    };
+    use FirstDirection as D;
+    use FirstVertex as V;
+    assert!(Tracer::new(&m, &p, cfg(V::Uniform, D::Uniform, 0)).is_err());
+    let bad = DVec3::new(f64::NAN, 0.0, 1.0);
+    assert!(
+        Tracer::new(
+            &m,
+            &p,
+            cfg(V::ExponentialDepth { direction: bad }, D::Uniform, 9)
+        )
+        .is_err()
+    );
+    assert!(Tracer::new(&m, &p, cfg(V::Uniform, D::Phase { axis: DVec3::ZERO }, 9)).is_err());
+}
