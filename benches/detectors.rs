@@ -11,8 +11,8 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use speckle::endpoints::{Detector, Weighting};
 use speckle::estimators::{
-    CovarianceOptions, Entries, NoProgress, Pair, Scene, Sensor, Source, render_correlation,
-    render_detectors,
+    CovarianceOptions, DetectorTechniques, Entries, NoProgress, Pair, Scene, Sensor, Source,
+    render_correlation, render_detectors_with,
 };
 use speckle::medium::{Aabb, DVec3, HomogeneousBox};
 use speckle::motion::{Motion, MotionModel};
@@ -66,11 +66,18 @@ fn detectors(c: &mut Criterion) {
     let mut g = c.benchmark_group("estimators/detectors/paths");
     g.sample_size(10);
     g.throughput(Throughput::Elements(paths));
-    g.bench_function("cube/detector", |b| {
-        b.iter(|| {
-            black_box(render_detectors(&disc, Some((&model, &lags)), &opts, &NoProgress).unwrap())
-        })
-    });
+    let techniques = [
+        ("exit", DetectorTechniques::Exit),
+        ("exit_and_next_event", DetectorTechniques::ExitAndNextEvent),
+    ];
+    for (name, t) in techniques {
+        g.bench_function(format!("cube/detector/{name}"), |b| {
+            b.iter(|| {
+                let motion = Some((&model, &lags[..]));
+                black_box(render_detectors_with(&disc, motion, &opts, t, &NoProgress).unwrap())
+            })
+        });
+    }
     g.bench_function("cube/point_sensors", |b| {
         b.iter(|| {
             black_box(
@@ -91,13 +98,14 @@ fn detectors(c: &mut Criterion) {
         .unwrap()
         .unwrap();
     let m = p.motion.as_ref().unwrap();
-    g.bench_function("tissue/detector", |b| {
-        b.iter(|| {
-            black_box(
-                render_detectors(&p.scene, Some((&m.model, &m.lags)), &opts, &NoProgress).unwrap(),
-            )
-        })
-    });
+    for (name, t) in techniques {
+        g.bench_function(format!("tissue/detector/{name}"), |b| {
+            b.iter(|| {
+                let motion = Some((&m.model, m.lags.as_slice()));
+                black_box(render_detectors_with(&p.scene, motion, &opts, t, &NoProgress).unwrap())
+            })
+        });
+    }
     g.finish();
 }
 

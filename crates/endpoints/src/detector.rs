@@ -237,6 +237,38 @@ impl Detector {
         std::f64::consts::PI * self.radius * self.radius
     }
 
+    /// A point of the disc, uniform (density `1 / |A|`), from two uniform variates.
+    #[inline]
+    pub fn sample_point(&self, u: [f64; 2]) -> DVec3 {
+        let (t1, t2) = self.tangents();
+        let r = self.radius * u[0].sqrt();
+        let (sin, cos) = (std::f64::consts::TAU * u[1]).sin_cos();
+        self.center + r * (cos * t1 + sin * t2)
+    }
+
+    /// Two unit vectors spanning the face's plane.
+    #[inline]
+    fn tangents(&self) -> (DVec3, DVec3) {
+        let n = self.normal;
+        // The normal is an axis: the other two axes span the face.
+        if n.x != 0.0 {
+            (DVec3::Y, DVec3::Z)
+        } else if n.y != 0.0 {
+            (DVec3::Z, DVec3::X)
+        } else {
+            (DVec3::X, DVec3::Y)
+        }
+    }
+
+    /// A lower bound of the distance from `x` (in the medium) to the disc.
+    #[inline]
+    pub fn distance_bound(&self, x: DVec3) -> f64 {
+        let off = x - self.center;
+        let depth = off.dot(self.normal);
+        let lateral = (off - depth * self.normal).length();
+        depth.hypot((lateral - self.radius).max(0.0))
+    }
+
     /// The detector's weight of light leaving the medium at `point` (on the boundary) along the
     /// unit direction `dir`: 0 outside the disc or the aperture, else `1 / |A|` (flux) or
     /// `1 / (|A| dir . n)` (fluence), so that the sum over exits of path weight times this is
@@ -305,6 +337,43 @@ mod tests {
         .unwrap();
         let w = DVec3::new(0.6, 0.0, -0.8);
         assert!((f.read(DVec3::new(0.25, 0.0, 0.0), w) - 1.0 / (a * 0.8)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn samples_the_disc_uniformly_and_bounds_distances() {
+        let d = det(DVec3::new(0.25, 0.0, 0.0), 0.05, 0.5, None).unwrap();
+        let n = 20_000;
+        let (mut r2, mut x) = (0.0, 0.0);
+        for i in 0..n {
+            let u = [
+                (i as f64 + 0.5) / n as f64,
+                ((i * 7919) % n) as f64 / n as f64,
+            ];
+            let p = d.sample_point(u);
+            assert_eq!(p.z, 0.0);
+            let off = p - d.center();
+            assert!(off.length() <= d.radius() * (1.0 + 1e-12));
+            r2 += off.length_squared();
+            x += off.x;
+        }
+        // E r^2 = R^2 / 2 for a uniform disc; E x = 0.
+        let r2 = r2 / n as f64;
+        assert!((r2 / (0.5 * 0.05 * 0.05) - 1.0).abs() < 1e-3, "{r2}");
+        assert!((x / n as f64).abs() < 1e-4);
+        // The bound never exceeds the distance to any point of the disc.
+        for x in [
+            DVec3::new(0.25, 0.0, 0.3),
+            DVec3::new(0.4, 0.1, 0.02),
+            DVec3::new(0.26, 0.0, 0.0),
+        ] {
+            let b = d.distance_bound(x);
+            for i in 0..200 {
+                let p = d.sample_point([(i as f64 + 0.5) / 200.0, (i % 13) as f64 / 13.0]);
+                assert!(b <= (p - x).length() + 1e-15);
+            }
+        }
+        assert!((d.distance_bound(DVec3::new(0.25, 0.0, 0.3)) - 0.3).abs() < 1e-15);
+        assert!((d.distance_bound(DVec3::new(0.4, 0.0, 0.0)) - 0.1).abs() < 1e-12);
     }
 
     #[test]

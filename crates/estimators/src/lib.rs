@@ -58,7 +58,10 @@ pub use covariance::{
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,
     render_intensity_with, render_single_scattering,
 };
-pub use detector::{DetectorEstimate, render_detectors};
+pub use detector::{
+    DetectorEstimate, DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY, render_detectors,
+    render_detectors_with,
+};
 pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };

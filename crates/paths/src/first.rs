@@ -673,38 +673,7 @@ impl EndpointMixture {
     ) -> f64 {
         let mut total = self.volume * volume_pdf * base;
         for (r, each) in self.ranges() {
-            if self.point_directions {
-                let np = self.points.len();
-                let points: f64 = (r.start.min(np)..r.end.min(np))
-                    .map(|k| {
-                        let q = self.point_pdf(k, x);
-                        if q == 0.0 {
-                            0.0
-                        } else {
-                            q * self.point_direction_pdf(phase, k, x, w)
-                        }
-                    })
-                    .sum();
-                total += each * points;
-                let (b0, b1) = (r.start.max(np), r.end.max(np));
-                if b0 == b1 {
-                    continue;
-                }
-                let r = b0..b1;
-                let (_, beams) = self.sums(r, x, |b| {
-                    let q = b.pdf(x);
-                    if q == 0.0 {
-                        0.0
-                    } else if b.samples_directions() {
-                        q * b.direction_pdf(phase, x, w)
-                    } else {
-                        q * base
-                    }
-                });
-                total += each * beams;
-                continue;
-            }
-            let (points, beams) = self.sums(r, x, |b| {
+            let (points, beams) = self.sums(r.clone(), x, |b| {
                 let q = b.pdf(x);
                 if q == 0.0 {
                     0.0
@@ -714,7 +683,22 @@ impl EndpointMixture {
                     q * base
                 }
             });
-            total += each * (points * base + beams);
+            let points = if self.point_directions {
+                let np = self.points.len();
+                (r.start.min(np)..r.end.min(np))
+                    .map(|k| {
+                        let q = self.point_pdf(k, x);
+                        if q == 0.0 {
+                            0.0
+                        } else {
+                            q * self.point_direction_pdf(phase, k, x, w)
+                        }
+                    })
+                    .sum()
+            } else {
+                points * base
+            };
+            total += each * (points + beams);
         }
         total
     }
