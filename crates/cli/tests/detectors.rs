@@ -172,3 +172,35 @@ fn bad_detectors_exit_2_naming_the_field() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("sensors[1]"), "{}", stderr(&o));
 }
+
+#[test]
+fn refractive_faces_render_with_detectors_and_are_refused_by_field_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let medium = "host_index = 1.4\noutside_index = 1.0";
+    let s = write(dir.path(), "f.toml", &scene(FIBRE, medium));
+    let o = speckle(
+        dir.path(),
+        &["g1", s.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let i = npy_f64(&dir.path().join("out/f.correlation.npy"));
+    assert!(i[0] > 0.0 && i[0].is_finite());
+    // The same medium with a point sensor: every field render refuses it, naming the key.
+    let field = scene(FIBRE, medium).replace(
+        "type = \"detector\"\nposition = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5",
+        "type = \"point\"\nposition = [0.1, 0.0, 0.0]",
+    );
+    let s = write(dir.path(), "p.toml", &field);
+    for cmd in ["covariance", "intensity", "g1", "mean", "wave"] {
+        let o = speckle(
+            dir.path(),
+            &[cmd, s.to_str().unwrap(), "--out", "out2", "-q"],
+        );
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("medium.outside_index"),
+            "{cmd}: {}",
+            stderr(&o)
+        );
+    }
+}

@@ -1,28 +1,38 @@
-//! Intensities and temporal correlations of disc detectors (fibres) by light tracing: a path
-//! starts at a first vertex sampled around its source, is traced until it leaves the medium,
-//! and registers with every detector whose disc and aperture it leaves through
-//! ([`speckle_endpoints::Detector::read`]).
+//! Intensities and temporal correlations of disc detectors (fibres) by light tracing: each path
+//! is emitted by a source ([`speckle_paths::Tracer::trace_emitted`]), enters the medium
+//! (refracted or reflected at a mismatched face), is traced until it leaves it, and registers
+//! with every detector whose disc and aperture it leaves through
+//! ([`speckle_endpoints::Detector::read`]); every vertex near a disc also connects to it by
+//! next-event estimation, the two weighed by multiple importance sampling.
 //!
 //! # The estimate
 //!
-//! A path `x1 .. x_b` sampled with the tracer's weight `W = sigma_s(x1) / p(x1, w1)` (the joint
-//! density of its first vertex and direction) whose flight from `x_b` along `w_out` leaves the
-//! medium at `y` adds, for the pair (source `i`, detector `d`) at the time lag `t`,
+//! Light tracing in the absolute units of `docs/conventions.md`: a point source emits the power
+//! `4 pi` (unit radiant intensity, `e^{ikr}/r`), a plane wave of unit intensity the power
+//! `|d . n| |face|` into each face it lights. A path carries that power to its first collision
+//! `x1`, where it is multiplied by the albedo (no roulette at `x1`), and keeps it (flights,
+//! roulette on the albedo and phase-function directions are sampled with the densities of the
+//! radiative transfer throughput). With `S` sources, path `n` comes from source `n mod S` with
+//! `S` times the weight. A path `x1 .. x_b` whose flight from `x_b`, scattered along `w_out`,
+//! leaves the medium at `y` along `w` (outside, after refraction) adds, for its source's pair
+//! with detector `d` at the time lag `t`,
 //!
-//! `W |upsilon(i -> x1)|^2 |s(s_i -> w1)|^2 R_d(y, w_out) exp(-k^2 |t| Y_i + i k t Q_i)`,
+//! `W R_d(y, w) m exp(-k^2 |t| Y + i k t Q)`,
 //!
-//! `s_i` the direction of source `i`'s leg at `x1`, `R_d` the detector's weight of the exit
-//! (`1 / |A|` or `1 / (|A| cos)`), and `Y_i = sum_m D(x_m) |q_m|^2`, `Q_i = sum_m q_m . U(x_m)`
-//! over every vertex of the path with the momentum transfers `q_1 = w1 - s_i`,
-//! `q_m = w_m - w_{m-1}` and `q_b = w_out - w_in` (Eq. 14 at each vertex, the exit direction
-//! as the last vertex's outgoing direction: each exit is one plane-wave mode of the detector).
-//! The flights, the roulette on the albedo and the phase-function directions are sampled with
-//! the densities of the radiative transfer throughput, so the registered sum is an unbiased
-//! estimate of the detector's reading (docs/conventions.md, "Detectors"); with the tracer's
-//! point components sampling `x1` at the source's exponential rate and `w1` from the phase
-//! function about the leg, `W |upsilon|^2 |s|^2 = 4 pi sigma_s / sigma_t` for a single point
-//! source, so every registered exit has the same weight and the variance is that of the number
-//! of paths that reach the detector (bounded for any radius and aperture).
+//! `R_d` the detector's weight of the exit (`1 / |A|` or `1 / (|A| cos)`), `m` the technique's
+//! weight (below), and `Y = sum_m D(x_m) |q_m|^2`, `Q = sum_m q_m . U(x_m)` over every vertex
+//! with the momentum transfers `q_1 = w1 - a` (`a` the direction the light arrived at `x1`),
+//! `q_m = w_m^out - w_m^in` (reflections off the faces between vertices are not scattering and
+//! transfer nothing) and `q_b = w_out - w_in` (Eq. 14 at each vertex; each exit is one
+//! plane-wave mode of the detector). For one point source in an index-matched medium every
+//! registered exit has the same weight, `4 pi albedo / |A|` (flux).
+//!
+//! Next-event estimation (the default, [`DetectorTechniques`]): a vertex within optical depth
+//! [`NEXT_EVENT_DEPTH`] of a disc connects to a uniform point `y` of it, adding
+//! `W rho(w_in -> w) e^{-OD} T_F R_d (cos / r^2) / (1/|A| + rho cos / r^2)`, `T_F` the Fresnel
+//! transmittance of the face; an exit through the disc straight from such a vertex is weighed
+//! by `(rho cos / r^2) / (rho cos / r^2 + 1/|A|)` (the balance heuristic; the transmittances are
+//! common to both techniques and left out of the weights, which sum to 1 at every point).
 //!
 //! Forward paths only: a detector integrates many speckle grains, over which the coherent
 //! backscattering cross term of a path and its reverse averages out (its cone is about
@@ -31,10 +41,10 @@
 use crate::{CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_endpoints::{Detector, Endpoints, Legs};
+use speckle_endpoints::{Detector, Source};
 use speckle_medium::Medium;
 use speckle_motion::{Motion, MotionModel};
-use speckle_paths::{Exit, PathRng, Vertex, VertexSink};
+use speckle_paths::{Emission, Exit, PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
 use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
@@ -99,20 +109,18 @@ struct Sink<'a, M: Medium, P> {
     lags: &'a [f64],
     k: f64,
     next_event: bool,
-    sources: Endpoints<'a, M>,
-    legs: Legs,
-    /// Whether `legs` hold this path's first vertex.
-    connected: bool,
+    /// The source that emitted the path, the factor of its share of the paths (the number of
+    /// sources), and the direction the light arrived at `x1` along.
+    source: usize,
+    share: f64,
+    arrival: DVec3,
     /// The stream of the next-event connections.
     rng: PathRng,
-    /// The first vertex, its particle type, motion and direction onwards (zero before `x2`).
-    x1: DVec3,
-    type1: usize,
+    /// The first vertex's motion and the direction onwards (zero before `x2`).
     first: Motion,
     w1: DVec3,
-    /// The current vertex, its particle type and motion and the direction it was reached along.
+    /// The current vertex, its motion and the direction it was reached along.
     x: DVec3,
-    ty: usize,
     here: Motion,
     w_in: DVec3,
     /// `sum D |q|^2` and `sum q . U` over the interior vertices so far.
@@ -150,17 +158,12 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
     }
 
     /// Adds `weight` (the path weight times the detector's reading and the technique's
-    /// weight) for detector `d` to every source's pair: the path leaves its last vertex, the
-    /// current one (or `x1` when `single`), along `w_out`.
+    /// weight) to the pair of the path's source and detector `d`: the path leaves its last
+    /// vertex, the current one (or `x1` when `single`), along `w_out`.
     fn register(&mut self, d: usize, w_out: DVec3, weight: f64, single: bool) {
-        if !self.connected {
-            self.sources.connect(self.x1, &mut self.legs);
-            self.connected = true;
-        }
         let nl = self.lags.len();
         let nd = self.scene.detectors().len();
         let k2 = self.k * self.k;
-        let phase = &self.scene.phases()[self.type1];
         let w1 = if single { w_out } else { self.w1 };
         // The last vertex's transfer (b >= 2) at its motion.
         let (y_last, q_last) = if single {
@@ -172,37 +175,30 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
                 q.dot(self.here.drift),
             )
         };
-        for i in 0..self.scene.sources().len() {
-            let s = self.legs.dir(i);
-            let leg = self.legs.amp(i).norm_sqr() * phase.pdf_direction(s, w1);
-            if leg <= 0.0 || !leg.is_finite() {
-                continue;
-            }
-            // The first vertex turns the source leg s into w1.
-            let q1 = w1 - s;
-            let y = self.y + y_last + self.first.diffusion * q1.length_squared();
-            let q = self.q + q_last + q1.dot(self.first.drift);
-            let w = weight * leg;
-            let base = (i * nd + d) * nl;
-            for (l, &t) in self.lags.iter().enumerate() {
-                self.values[base + l] +=
-                    w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
-            }
-            self.registered = true;
-            self.single = single;
+        // The first vertex turns the arriving light into w1.
+        let q1 = w1 - self.arrival;
+        let y = self.y + y_last + self.first.diffusion * q1.length_squared();
+        let q = self.q + q_last + q1.dot(self.first.drift);
+        let w = weight * self.share;
+        let base = (self.source * nd + d) * nl;
+        for (l, &t) in self.lags.iter().enumerate() {
+            self.values[base + l] +=
+                w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
         }
+        self.registered = true;
+        self.single = single;
     }
 }
 
 impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
-    fn first(&mut self, x1: DVec3, ty: usize, _weight: f64, _rng: &mut PathRng) {
-        self.connected = false;
-        self.x1 = x1;
-        self.type1 = ty;
+    fn arrival(&mut self, dir: DVec3) {
+        self.arrival = dir;
+    }
+
+    fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
         self.first = self.motion_at(x1);
         self.w1 = DVec3::ZERO;
         self.x = x1;
-        self.ty = ty;
         self.here = self.first;
         self.w_in = DVec3::ZERO;
         self.y = 0.0;
@@ -211,15 +207,15 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
         if v.index > 2 {
-            // x_{b-1} is now interior: it turned the path from w_in to v.w_in.
-            let q = v.w_in - self.w_in;
+            // x_{b-1} is now interior: it turned the path from w_in into the direction it
+            // scattered into (v.w_in, unless a face reflected the flight).
+            let q = v.w_prev_out - self.w_in;
             self.y += self.here.diffusion * q.length_squared();
             self.q += q.dot(self.here.drift);
         } else {
             self.w1 = v.w12;
         }
         self.x = v.x;
-        self.ty = v.ty;
         self.here = self.motion_at(v.x);
         self.w_in = v.w_in;
         // Next-event connections to a point of each disc, weighed against the exit estimator
@@ -234,14 +230,23 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
             let to = y - v.x;
             let r2 = to.length_squared();
             let w = to / r2.sqrt();
-            let reading = det.read(y, w);
+            let cos = w.dot(det.normal());
+            // Through the face: the Fresnel transmittance and the refracted direction.
+            let (transmitted, outside) = match scene.interface() {
+                None => (1.0, Some(w)),
+                Some(i) => (1.0 - i.reflectance(cos), i.refract(w, det.normal())),
+            };
+            let Some(outside) = outside else {
+                continue;
+            };
+            let reading = det.read(y, outside);
             if reading <= 0.0 {
                 continue;
             }
             let rho = scene.phases()[v.ty].pdf_direction(v.w_in, w);
-            let geometry = w.dot(det.normal()) / r2;
+            let geometry = cos / r2;
             let transmittance = (-scene.medium().optical_depth(v.x, y)).exp();
-            let f = rho * transmittance * reading * geometry;
+            let f = rho * transmittance * transmitted * reading * geometry;
             if f <= 0.0 {
                 continue;
             }
@@ -259,16 +264,18 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
             }
             let single = e.index == 1;
             // The balance heuristic against the next-event connection of the last vertex (the
-            // current vertex of the sink), where it makes one.
-            let mis = if single || !self.connects(det) {
+            // current vertex of the sink), where it makes one; an exit after reflections off
+            // the faces is not a path that connection samples.
+            let mis = if single || e.reflections > 0 || !self.connects(det) {
                 1.0
             } else {
                 let r2 = (e.point - e.x).length_squared();
-                let q = scene.phases()[e.ty].pdf_direction(e.w_in, e.dir) * e.dir.dot(det.normal())
+                let q = scene.phases()[e.ty].pdf_direction(e.w_in, e.w_out)
+                    * e.w_out.dot(det.normal())
                     / r2;
                 q / (q + 1.0 / det.area())
             };
-            self.register(d, e.dir, e.weight * reading * mis, single);
+            self.register(d, e.w_out, e.weight * reading * mis, single);
         }
     }
 }
@@ -349,40 +356,48 @@ where
     let (j, nl) = (scene.len(), lags.len());
     let k = scene.wavenumber();
     let registered = std::sync::atomic::AtomicU64::new(0);
-    let init = || {
-        let sources = Endpoints::sources(scene.medium(), k, scene.sources());
-        let legs = sources.legs();
-        Sink {
-            scene,
-            motion: model,
-            lags: &lags,
-            k,
-            next_event: techniques == DetectorTechniques::ExitAndNextEvent,
-            sources,
-            legs,
-            connected: false,
-            rng: PathRng::new(0, 0),
-            x1: DVec3::ZERO,
-            type1: 0,
-            first: Motion::default(),
-            w1: DVec3::ZERO,
-            x: DVec3::ZERO,
-            ty: 0,
-            here: Motion::default(),
-            w_in: DVec3::ZERO,
-            y: 0.0,
-            q: 0.0,
-            values: vec![Complex64::ZERO; j * nl],
-            registered: false,
-            single: false,
-        }
+    let emissions: Vec<Emission> = scene
+        .sources()
+        .iter()
+        .map(|s| match *s {
+            Source::Point { position } => Ok(Emission::Point(position)),
+            Source::PlaneWave { direction } => Ok(Emission::Plane(direction)),
+            Source::GaussianBeam(_) => Err(invalid(
+                "sources",
+                "detectors read light from point sources and plane waves".into(),
+            )),
+        })
+        .collect::<Result<_, _>>()?;
+    let n_sources = emissions.len() as u64;
+    let init = || Sink {
+        scene,
+        motion: model,
+        lags: &lags,
+        k,
+        next_event: techniques == DetectorTechniques::ExitAndNextEvent,
+        source: 0,
+        share: n_sources as f64,
+        arrival: DVec3::ZERO,
+        rng: PathRng::new(0, 0),
+        first: Motion::default(),
+        w1: DVec3::ZERO,
+        x: DVec3::ZERO,
+        here: Motion::default(),
+        w_in: DVec3::ZERO,
+        y: 0.0,
+        q: 0.0,
+        values: vec![Complex64::ZERO; j * nl],
+        registered: false,
+        single: false,
     };
     let seed = opts.seed;
     let nee_seed = derive_seed(seed, NEXT_EVENT_KEY);
     let path = |sink: &mut Sink<M, P>, n: u64, sums: &mut [BatchSum], _poll: &mut Poll| {
         let mut rng = PathRng::new(seed, n);
         sink.rng = PathRng::new(nee_seed, n);
-        tracer.trace(&mut rng, sink);
+        // Path n comes from source n mod S (each source a 1/S share of the paths).
+        sink.source = (n % n_sources) as usize;
+        tracer.trace_emitted(emissions[sink.source], &mut rng, sink);
         if sink.registered {
             // Part 0: single scattering, part 1: multiple.
             sums[usize::from(!sink.single)].push_values(&sink.values, Complex64::ONE);

@@ -161,6 +161,48 @@ impl Aabb {
         t.max(0.0)
     }
 
+    /// The outward normal of the face through which the ray from `x` (inside the box) along
+    /// the unit direction `dir` leaves it: the face of [`Aabb::exit_distance`].
+    pub fn exit_normal(&self, x: DVec3, dir: DVec3) -> DVec3 {
+        let (mut t, mut normal) = (f64::INFINITY, DVec3::ZERO);
+        for a in 0..3 {
+            let (ta, side) = if dir[a] > 0.0 {
+                ((self.max[a] - x[a]) / dir[a], 1.0)
+            } else if dir[a] < 0.0 {
+                ((self.min[a] - x[a]) / dir[a], -1.0)
+            } else {
+                continue;
+            };
+            if ta < t {
+                t = ta;
+                normal = DVec3::ZERO;
+                normal[a] = side;
+            }
+        }
+        normal
+    }
+
+    /// The outward normal of the face through which the ray from `o` (outside the box) along
+    /// `dir` enters it (the face of the entry distance of [`Aabb::clip`]).
+    pub fn entry_normal(&self, o: DVec3, dir: DVec3) -> DVec3 {
+        let (mut t, mut normal) = (f64::NEG_INFINITY, DVec3::ZERO);
+        for a in 0..3 {
+            let (ta, side) = if dir[a] > 0.0 {
+                ((self.min[a] - o[a]) / dir[a], -1.0)
+            } else if dir[a] < 0.0 {
+                ((self.max[a] - o[a]) / dir[a], 1.0)
+            } else {
+                continue;
+            };
+            if ta > t {
+                t = ta;
+                normal = DVec3::ZERO;
+                normal[a] = side;
+            }
+        }
+        normal
+    }
+
     /// The point with coordinates `u` in `[0, 1)^3` relative to the box.
     pub fn lerp(&self, u: [f64; 3]) -> DVec3 {
         self.min + DVec3::from_array(u) * self.size()

@@ -38,12 +38,14 @@
 
 mod aabb;
 mod any;
+pub mod boundary;
 mod grid;
 mod homogeneous;
 mod particles;
 
 pub use aabb::Aabb;
 pub use any::AnyMedium;
+pub use boundary::Interface;
 pub use glam::DVec3;
 pub use grid::{MAX_VOXELS, Material, Tracking, VoxelGrid};
 pub use homogeneous::HomogeneousBox;

@@ -157,6 +157,7 @@ mod tests {
             w12: w[0],
             x: x[b - 1],
             w_in: w[b - 2],
+            w_prev_out: w[b - 2],
             type1: 0,
             ty: 0,
             weight: 1.0,

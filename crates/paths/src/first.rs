@@ -560,16 +560,13 @@ pub(crate) struct EndpointMixture {
     /// probabilities sum to `1 - volume`.
     pub(crate) groups: Vec<(usize, f64)>,
     pub(crate) dimension: Dimension,
-    /// Whether a first vertex sampled around a point takes its first direction from the phase
-    /// function about the point's leg, `unit(x1 - p)` ([`crate::Tracer::with_point_directions`]).
-    pub(crate) point_directions: bool,
 }
 
 /// Which strategy sampled a first vertex.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Component {
     Volume,
-    Point(usize),
+    Point,
     Beam(usize),
 }
 
@@ -590,25 +587,10 @@ impl EndpointMixture {
         })
     }
 
-    /// Whether some beam, or every point, samples first directions from its own strategy.
+    /// Whether some beam samples first directions from its own strategy.
     #[inline]
     pub(crate) fn samples_directions(&self) -> bool {
-        (self.point_directions && !self.points.is_empty())
-            || self.beams.iter().any(BeamSampler::samples_directions)
-    }
-
-    /// The density of `w` as the first direction from `x` of the component around point `k`
-    /// when points sample directions: the phase function about the leg `unit(x - p_k)`.
-    #[inline]
-    fn point_direction_pdf<P: PhaseFunction>(
-        &self,
-        phase: &P,
-        k: usize,
-        x: DVec3,
-        w: DVec3,
-    ) -> f64 {
-        let leg = (x - self.points[k]).normalize_or_zero();
-        phase.pdf_direction(leg, w)
+        self.beams.iter().any(BeamSampler::samples_directions)
     }
 
     /// The density of the component around point `k` at `x`.
@@ -657,11 +639,10 @@ impl EndpointMixture {
         total
     }
 
-    /// The joint density of the first vertex `x` and first direction `w` when beams (or points)
-    /// sample directions: `volume q_o(x) p(w) + sum over groups of each component's probability
-    /// times (sum_points q_k(x) p_k(w | x) + sum_beams q_j(x) p_j(w | x))`, with `p` the
-    /// configured direction density `base`, and `p_k = p` unless points sample directions
-    /// (then the phase function about `unit(x - p_k)`).
+    /// The joint density of the first vertex `x` and first direction `w` when beams sample
+    /// directions: `volume q_o(x) p(w) + sum over groups of each component's probability times
+    /// (sum_points q_k(x) p(w) + sum_beams q_j(x) p_j(w | x))`, with `p` the configured direction
+    /// density `base`.
     #[inline]
     pub(crate) fn joint_pdf<P: PhaseFunction>(
         &self,
@@ -673,7 +654,7 @@ impl EndpointMixture {
     ) -> f64 {
         let mut total = self.volume * volume_pdf * base;
         for (r, each) in self.ranges() {
-            let (points, beams) = self.sums(r.clone(), x, |b| {
+            let (points, beams) = self.sums(r, x, |b| {
                 let q = b.pdf(x);
                 if q == 0.0 {
                     0.0
@@ -683,22 +664,7 @@ impl EndpointMixture {
                     q * base
                 }
             });
-            let points = if self.point_directions {
-                let np = self.points.len();
-                (r.start.min(np)..r.end.min(np))
-                    .map(|k| {
-                        let q = self.point_pdf(k, x);
-                        if q == 0.0 {
-                            0.0
-                        } else {
-                            q * self.point_direction_pdf(phase, k, x, w)
-                        }
-                    })
-                    .sum()
-            } else {
-                points * base
-            };
-            total += each * (points + beams);
+            total += each * (points * base + beams);
         }
         total
     }
@@ -726,7 +692,7 @@ impl EndpointMixture {
         }
         let w = self.dimension.sample_uniform_direction([u[0], u[1]]);
         let r = -(-u[2]).ln_1p() / self.rates[k];
-        (self.points[k] + r * w, Component::Point(k))
+        (self.points[k] + r * w, Component::Point)
     }
 }
 
@@ -762,7 +728,6 @@ mod tests {
                 volume: 1.0 / 3.0,
                 groups: EndpointMixture::one_group(2, 1.0 / 3.0),
                 dimension,
-                point_directions: false,
             };
             let n = 400_000;
             let (mut acc, mut acc2) = (0.0, 0.0);

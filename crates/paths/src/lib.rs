@@ -31,8 +31,8 @@ pub use factor::{FactorValue, NoFactor, PathFactor};
 pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
 pub use speckle_stats::PathRng;
 pub use tracer::{
-    Exit, MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, MAX_POSITION_BEAMS, Tracer, TracerConfig,
-    Vertex, VertexSink,
+    Emission, Exit, MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, MAX_POSITION_BEAMS, Tracer,
+    TracerConfig, Vertex, VertexSink,
 };
 
 /// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).

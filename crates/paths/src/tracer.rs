@@ -5,7 +5,7 @@ use crate::first::{
 };
 use crate::{Beam, BeamStrategy, Coherence, FirstDirection, FirstVertex, PathError, PathRng};
 use glam::DVec3;
-use speckle_medium::Medium;
+use speckle_medium::{Interface, Medium};
 use speckle_phase::PhaseFunction;
 
 /// Most point components of the first-vertex mixture for points outside the medium
@@ -62,8 +62,11 @@ pub struct Vertex {
     pub w12: DVec3,
     /// This vertex `x_b`.
     pub x: DVec3,
-    /// Unit direction from `x_{b-1}` to `x_b`.
+    /// Unit direction arriving at `x_b`.
     pub w_in: DVec3,
+    /// The direction in which `x_{b-1}` scattered the path: `w_in` unless the flight was
+    /// reflected by a face on the way ([`Tracer::with_interface`]).
+    pub w_prev_out: DVec3,
     /// Particle type at `x1` (always 0 in a single-type medium).
     pub type1: usize,
     /// Particle type at `x_b`, the same particle that scatters the path onwards (always 0 in
@@ -109,8 +112,14 @@ pub struct Exit {
     pub x: DVec3,
     /// Unit direction arriving at `x_b` (zero when `index == 1`: the caller knows the source leg).
     pub w_in: DVec3,
-    /// The direction of the exit flight (the direction scattered at `x_b`).
+    /// The direction in which `x_b` scattered the path (the exit flight's direction, unless it
+    /// was reflected by faces on the way).
+    pub w_out: DVec3,
+    /// The direction of the light leaving the medium: inside the box, then refracted outside
+    /// when the faces refract ([`Tracer::with_interface`]).
     pub dir: DVec3,
+    /// Fresnel reflections off the faces between `x_b` and the exit.
+    pub reflections: u32,
     /// Where the flight crosses the medium's boundary.
     pub point: DVec3,
     /// Particle type at `x_b`.
@@ -121,8 +130,25 @@ pub struct Exit {
     pub weight: f64,
 }
 
+/// Where the light of a light-tracing path comes from ([`Tracer::trace_emitted`]), in the
+/// absolute units of `docs/conventions.md`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Emission {
+    /// An isotropic point source of unit radiant intensity (`e^{ikr}/r`: power `4 pi`), inside,
+    /// on or outside the medium's box.
+    Point(DVec3),
+    /// A plane wave of unit intensity along the unit direction (a face at incidence `theta`
+    /// receives the power `cos(theta)` per unit area).
+    Plane(DVec3),
+}
+
 /// Receives the vertices of a sub-path as they are sampled.
 pub trait VertexSink {
+    /// Light tracing ([`Tracer::trace_emitted`]): the direction in which the emitted light
+    /// arrives at the first vertex, given just before [`VertexSink::first`]. The default
+    /// ignores it.
+    #[inline]
+    fn arrival(&mut self, _dir: DVec3) {}
     /// The first vertex `x1` with the particle type there, and the single-scattering weight
     /// `sigma_s(x1) / q_o(x1)`.
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng);
@@ -158,6 +184,8 @@ pub struct Tracer<'a, M, P> {
     max_vertices: u32,
     /// Whether vertices carry the balance heuristic of both orders ([`Vertex::both_orders`]).
     both_orders: bool,
+    /// A refractive-index mismatch at the box's faces.
+    interface: Option<Interface>,
 }
 
 impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
@@ -199,6 +227,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             beams: config.beams,
             max_vertices: config.max_vertices,
             both_orders: true,
+            interface: None,
         })
     }
 
@@ -354,22 +383,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             rates,
             beams,
             dimension: m.dimension(),
-            point_directions: false,
         });
-        self
-    }
-
-    /// Makes every point component of the first-vertex mixture ([`Tracer::with_endpoints`])
-    /// sample its first direction too: from the phase function about the leg from the point,
-    /// `unit(x1 - p)`, as a photon leaving a point source scatters. The weights use the joint
-    /// density of the whole mixture, so paths stay unbiased; a forward estimator that connects
-    /// `x1` to a point source then has the weight `sigma_s / sigma_t` times the ratio of its
-    /// leg to the density (bounded) instead of `|s|^2 / p(w1)`, which for a forward-peaked phase
-    /// function (`g = 0.9`) spreads over four decades. Does nothing without point components.
-    pub fn with_point_directions(mut self) -> Self {
-        if let Some(p) = self.points.as_mut() {
-            p.point_directions = !p.points.is_empty();
-        }
         self
     }
 
@@ -379,6 +393,18 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// exits are unchanged.
     pub fn without_both_orders(mut self) -> Self {
         self.both_orders = false;
+        self
+    }
+
+    /// Makes the faces of the medium's box reflect and refract (Fresnel, unpolarised): a flight
+    /// that reaches a face is reflected with the probability `R(cos_i)` (1 beyond the critical
+    /// angle) and continues from the face without a vertex, or else leaves refracted
+    /// ([`Exit::dir`]). Weights are unchanged (the reflection is sampled with its own
+    /// probability). Only estimators that follow the path's directions through reflections
+    /// ([`Vertex::w_prev_out`], [`Exit::w_out`]) and connect nothing across a face may use it:
+    /// the detector estimators. A matched interface changes nothing.
+    pub fn with_interface(mut self, interface: Interface) -> Self {
+        self.interface = (!interface.is_matched()).then_some(interface);
         self
     }
 
@@ -497,10 +523,6 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     let c = rng.next_f64();
                     p.beams[j].sample_direction(phase1, x1, c, rng.next_2())
                 }
-                (Component::Point(k), Some(p)) if p.point_directions => {
-                    let leg = (x1 - p.points[k]).normalize_or_zero();
-                    phase1.sample_direction(leg, rng.next_2())
-                }
                 _ => self.first_direction.sample(phase1, rng.next_2()).0,
             };
             let p = self.joint_pdf(x1, w12, type1);
@@ -515,22 +537,53 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             }
             (w12, w_single / p_w)
         };
+        self.walk(x1, type1, w12, weight, rng, sink)
+    }
+
+    /// Follows a path from its first vertex `x1` (particle type `type1`) along `w12` with the
+    /// weight `weight`: flights, roulette, vertices and the exit, as [`Tracer::trace`] after
+    /// its first vertex; returns the number of vertices.
+    fn walk<S: VertexSink>(
+        &self,
+        x1: DVec3,
+        type1: usize,
+        w12: DVec3,
+        weight: f64,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> u32 {
         let (mut x, mut dir, mut b) = (x1, w12, 1u32);
         let (mut w_in, mut ty_here) = (DVec3::ZERO, type1);
+        // The last vertex, the direction it scattered into, and reflections since.
+        let (mut here, mut scattered, mut reflections) = (x1, w12, 0u32);
         while b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
-                let out = self.medium.bounds().exit_distance(x, dir);
+                let bounds = self.medium.bounds();
+                let point = x + bounds.exit_distance(x, dir) * dir;
+                let mut leaving = dir;
+                if let Some(i) = self.interface {
+                    let normal = bounds.exit_normal(x, dir);
+                    if rng.next_f64() < i.reflectance(dir.dot(normal)) {
+                        dir = speckle_medium::boundary::reflect(dir, normal);
+                        x = point;
+                        reflections += 1;
+                        continue;
+                    }
+                    leaving = i.refract(dir, normal).unwrap_or(dir);
+                }
                 sink.exit(
                     &Exit {
                         index: b,
                         x1,
                         w12,
-                        x,
+                        x: here,
                         w_in,
-                        dir,
-                        point: x + out * dir,
+                        w_out: scattered,
+                        dir: leaving,
+                        point,
                         ty: ty_here,
                         weight,
+                        reflections,
                     },
                     rng,
                 );
@@ -561,6 +614,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     w12,
                     x: next,
                     w_in: dir,
+                    w_prev_out: scattered,
                     type1,
                     ty,
                     weight,
@@ -572,8 +626,121 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             ty_here = ty;
             dir = self.phases[ty].sample_direction(dir, rng.next_2());
             x = next;
+            here = next;
+            scattered = dir;
+            reflections = 0;
         }
         b
+    }
+
+    /// Samples one path of light tracing from `emission` (analog emission, [`Emission`]): the
+    /// light enters the medium (refracted, or reflected away with the Fresnel probability, at a
+    /// mismatched face, [`Tracer::with_interface`]), its first flight (reflected by the faces on
+    /// the way) ends at the first vertex `x1`, whose weight is the emitted power times the
+    /// albedo there (no roulette at `x1`), and `w12` follows from the phase function about the
+    /// direction of arrival, which the sink receives first ([`VertexSink::arrival`]). Returns
+    /// the number of vertices (0 when the light leaves unscattered).
+    pub fn trace_emitted<S: VertexSink>(
+        &self,
+        emission: Emission,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> u32 {
+        let bounds = self.medium.bounds();
+        let (mut x, mut dir, power) = match emission {
+            Emission::Point(p) => {
+                let d = self.medium.dimension();
+                let dir = d.sample_uniform_direction(rng.next_2());
+                let power = 1.0 / d.uniform_direction_pdf();
+                if bounds.contains(p) {
+                    (p, dir, power)
+                } else {
+                    let Some((t0, _)) = bounds.clip(p, dir, 0.0, f64::INFINITY) else {
+                        return 0;
+                    };
+                    let normal = bounds.entry_normal(p, dir);
+                    let Some(inside) = self.enter(dir, normal, rng) else {
+                        return 0;
+                    };
+                    (p + t0 * dir, inside, power)
+                }
+            }
+            Emission::Plane(d) => {
+                // A face lit by the wave receives the power |d . n| times its area.
+                let size = bounds.size();
+                let mut faces = [(DVec3::ZERO, 0.0); 3];
+                for (a, face) in faces.iter_mut().enumerate() {
+                    let area = size[(a + 1) % 3] * size[(a + 2) % 3];
+                    let mut n = DVec3::ZERO;
+                    n[a] = if d[a] > 0.0 { -1.0 } else { 1.0 };
+                    *face = (n, (d[a].abs() * area).max(0.0));
+                }
+                let total: f64 = faces.iter().map(|f| f.1).sum();
+                if total.is_nan() || total <= 0.0 {
+                    return 0;
+                }
+                let mut c = rng.next_f64() * total;
+                let mut k = 0;
+                while k < 2 && c >= faces[k].1 {
+                    c -= faces[k].1;
+                    k += 1;
+                }
+                let (normal, _) = faces[k];
+                let mut x = bounds.lerp(rng.next_3());
+                x[k] = if normal[k] < 0.0 {
+                    bounds.min()[k]
+                } else {
+                    bounds.max()[k]
+                };
+                let Some(inside) = self.enter(d, normal, rng) else {
+                    return 0;
+                };
+                (x, inside, total)
+            }
+        };
+        // The first flight, reflected by the faces on the way.
+        let x1 = loop {
+            match self.medium.sample_flight(x, dir, &mut || rng.next_f64()) {
+                Some(t) => break x + t * dir,
+                None => {
+                    let Some(i) = self.interface else {
+                        return 0;
+                    };
+                    let point = x + bounds.exit_distance(x, dir) * dir;
+                    let normal = bounds.exit_normal(x, dir);
+                    if rng.next_f64() >= i.reflectance(dir.dot(normal)) {
+                        return 0;
+                    }
+                    dir = speckle_medium::boundary::reflect(dir, normal);
+                    x = point;
+                }
+            }
+        };
+        let weight = power * self.medium.albedo(x1);
+        if weight.is_nan() || weight <= 0.0 {
+            return 0;
+        }
+        let type1 = self.sample_type(x1, rng);
+        sink.arrival(dir);
+        sink.first(x1, type1, weight, rng);
+        let w12 = self.phases[type1].sample_direction(dir, rng.next_2());
+        self.walk(x1, type1, w12, weight, rng, sink)
+    }
+
+    /// Light from outside crossing a face of outward normal `normal` along `dir`: the direction
+    /// inside, or `None` when it is reflected away (with the Fresnel probability of a
+    /// mismatched interface).
+    #[inline]
+    fn enter(&self, dir: DVec3, normal: DVec3, rng: &mut PathRng) -> Option<DVec3> {
+        let Some(i) = self.interface else {
+            return Some(dir);
+        };
+        let cos = -dir.dot(normal);
+        let r = speckle_medium::boundary::reflectance(i.outside(), i.inside(), cos);
+        if rng.next_f64() < r {
+            return None;
+        }
+        speckle_medium::boundary::refract(i.outside() / i.inside(), dir, -normal)
     }
 }
 

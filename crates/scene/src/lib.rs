@@ -24,7 +24,7 @@
 use num_complex::Complex64;
 use rayon::prelude::*;
 use speckle_endpoints::{Detector, Pair, Sensor, Source};
-use speckle_medium::{DVec3, Medium};
+use speckle_medium::{DVec3, Interface, Medium};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
@@ -99,6 +99,7 @@ pub struct Scene<M, P> {
     sensors: Vec<Sensor>,
     pairs: Vec<Pair>,
     detectors: Vec<Detector>,
+    interface: Option<Interface>,
 }
 
 /// The message of a field render asked of a scene whose sensors are detectors.
@@ -217,6 +218,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             sensors,
             pairs,
             detectors: vec![],
+            interface: None,
         })
     }
 
@@ -275,32 +277,55 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         !self.detectors.is_empty()
     }
 
-    /// An error naming `sensors` when the scene's sensors are detectors, for the renders that
-    /// need field sensors.
+    /// An error naming `sensors` when the scene's sensors are detectors, or
+    /// `medium.outside_index` when its faces refract, for the renders that need field sensors
+    /// and straight connections.
     pub fn check_field_sensors(&self) -> Result<(), SceneError> {
         if self.has_detectors() {
             return Err(invalid("sensors", DETECTORS_ONLY));
         }
+        if let Some(i) = self.interface {
+            return Err(invalid(
+                "medium.outside_index",
+                format!(
+                    "the faces refract (index {} inside, {} outside): only detectors, which \
+                     register paths where they leave the medium, support that; the \
+                     connections of field renders, the mean and the wave solver do not cross \
+                     a refracting face",
+                    i.inside(),
+                    i.outside()
+                ),
+            ));
+        }
         Ok(())
     }
 
-    /// The path sampler of the detector estimators: `sampling`'s strategies with first vertices
-    /// around the point sources in or near the medium, which also sample the first direction
-    /// from the phase function about their leg ([`Tracer::with_point_directions`]). Paths are
-    /// forward only (a detector is reached by leaving the medium, not by a connection).
+    /// The path sampler of the detector estimators: light tracing from the sources
+    /// ([`Tracer::trace_emitted`]; `sampling`'s first-vertex and first-direction strategies are
+    /// not used, its vertex limit is), through the faces' interface ([`Scene::interface`]).
+    /// Paths are forward only (a detector is reached by leaving the medium).
     pub fn detector_tracer(&self, sampling: TracerConfig) -> Result<Tracer<'_, M, P>, SceneError> {
-        let points: Vec<_> = self
-            .sources
-            .iter()
-            .filter_map(Source::point_position)
-            .collect();
         let tracer = Tracer::with_types(&self.medium, &self.phases, sampling)
-            .map_err(|e| invalid("render", e.to_string()))?;
-        let others = points.len() < self.sources.len();
-        Ok(tracer
-            .with_endpoints(&points, &[], &[], self.wavenumber(), others)
-            .with_point_directions()
-            .without_both_orders())
+            .map_err(|e| invalid("render", e.to_string()))?
+            .without_both_orders();
+        Ok(match self.interface {
+            Some(i) => tracer.with_interface(i),
+            None => tracer,
+        })
+    }
+
+    /// A refractive-index mismatch at the faces of the medium's box (`medium.outside_index`):
+    /// paths reflect and refract there (Fresnel). Only scenes of detectors take it: the field
+    /// renders' connections do not cross a refracting face, and [`Scene::tracer`] refuses the
+    /// scene, naming `medium.outside_index`. A matched interface is no interface.
+    pub fn with_interface(mut self, interface: Interface) -> Self {
+        self.interface = (!interface.is_matched()).then_some(interface);
+        self
+    }
+
+    /// The faces' interface, when the indices differ.
+    pub fn interface(&self) -> Option<Interface> {
+        self.interface
     }
 
     /// The medium.

@@ -18,7 +18,7 @@ use crate::{AnyScene, Scene};
 use num_complex::Complex64;
 use serde_json::{Value, json};
 use speckle_endpoints::Pair;
-use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Medium};
+use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Interface, Medium};
 use speckle_phase::{Phase, PhaseFunction};
 use std::fmt::Write as _;
 use std::ops::Range;
@@ -281,7 +281,17 @@ impl Problem {
         let bounds = *medium.bounds();
         let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
         let host_index = file.medium.host_index.unwrap_or(1.0);
-        let detectors = build_detectors(&file.sensors, &medium, host_index)?;
+        let outside_index = match file.medium.outside_index {
+            None => host_index,
+            Some(n) if n.is_finite() && n >= 1.0 => n,
+            Some(n) => {
+                return Err(invalid(
+                    "medium.outside_index",
+                    format!("must be finite and >= 1 (got {n})"),
+                ));
+            }
+        };
+        let detectors = build_detectors(&file.sensors, &medium, outside_index)?;
         let (sensors, sensor_desc, grid) = match &detectors {
             Some((_, desc)) => (vec![], desc.clone(), None),
             None => build_sensors(&mut file.sensors, &bounds)?,
@@ -303,6 +313,19 @@ impl Problem {
                 Scene::with_detectors(medium, phases, wavelength, sources, detectors)?
             }
             None => Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?,
+        };
+        let scene = match Interface::new(host_index, outside_index) {
+            _ if outside_index == host_index => scene,
+            Some(i) => scene.with_interface(i),
+            None => {
+                return Err(invalid(
+                    "medium.host_index",
+                    format!(
+                        "a medium whose faces meet another index needs an index >= 1 inside \
+                         (got {host_index})"
+                    ),
+                ));
+            }
         };
         let motion = match &file.motion {
             Some(m) => Some(crate::build::motion::build(

@@ -113,6 +113,11 @@ pub struct MediumSpec {
     /// are computed relative to it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub host_index: Option<f64>,
+    /// Refractive index outside the medium's box (default: the host's, an index-matched
+    /// boundary). A different index makes the faces reflect and refract (Fresnel); only scenes
+    /// of detectors support it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub outside_index: Option<f64>,
     /// Particle types (Mie spheres) instead of coefficients: `sigma_s`, `sigma_a` and one
     /// amplitude function per type follow from Mie theory (Eqs. 42-44); `sigma_a`, if given,
     /// is the host's absorption.

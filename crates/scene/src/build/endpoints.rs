@@ -570,12 +570,13 @@ pub fn build_sensors(specs: &mut [SensorSpec], b: &Aabb) -> Result<BuiltSensors,
 pub type BuiltDetectors = (Vec<Detector>, Vec<EndpointInfo>);
 
 /// The detectors of `[[sensors]]` when every entry is a `detector` (`None` when none is),
-/// validated against `medium` with the index `host_index` outside its faces; an error naming
-/// the entry when detectors and other sensors are mixed.
+/// validated against `medium` with the index `outside_index` outside its faces (in which their
+/// apertures are defined); an error naming the entry when detectors and other sensors are
+/// mixed.
 pub fn build_detectors<M: speckle_medium::Medium>(
     specs: &[SensorSpec],
     medium: &M,
-    host_index: f64,
+    outside_index: f64,
 ) -> Result<Option<BuiltDetectors>, SceneError> {
     let is_detector = |s: &SensorSpec| matches!(s, SensorSpec::Detector { .. });
     if !specs.iter().any(is_detector) {
@@ -594,12 +595,13 @@ pub fn build_detectors<M: speckle_medium::Medium>(
             format!("more than {MAX_ENDPOINTS} sensors"),
         ));
     }
-    if !(host_index.is_finite() && host_index >= 1.0) {
+    if !(outside_index.is_finite() && outside_index >= 1.0) {
         return Err(invalid(
             "medium.host_index",
             format!(
-                "must be finite and >= 1 with detectors (the index outside the faces, in which \
-                 their aperture is defined; got {host_index})"
+                "must be finite and >= 1 with detectors (with an index-matched boundary it is \
+                 the index outside the faces, in which their aperture is defined; got \
+                 {outside_index})"
             ),
         ));
     }
@@ -624,9 +626,9 @@ pub fn build_detectors<M: speckle_medium::Medium>(
             medium,
             DVec3::from_array(*position),
             *radius,
-            numerical_aperture.unwrap_or(host_index),
+            numerical_aperture.unwrap_or(outside_index),
             axis.map(DVec3::from_array),
-            host_index,
+            outside_index,
             weighting,
         )?;
         desc.push(EndpointInfo {
