@@ -38,7 +38,9 @@
 //! backscattering cross term of a path and its reverse averages out (its cone is about
 //! `lambda / l*` wide); the reading is the incoherent sum.
 
-use crate::{CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene};
+use crate::{
+    CMatrix, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
+};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_endpoints::{Detector, Source};
@@ -64,6 +66,14 @@ pub struct DetectorEstimate {
     pub multiple: MatrixEstimate,
     /// `C_j(t)`, their sum, with standard errors that account for the correlation of the parts.
     pub total: MatrixEstimate,
+    /// Number `M` of materials of the medium.
+    pub materials: usize,
+    /// The Brownian decay sums per material, `(J M) x 1`, pair-major: entry `j * M + m` is
+    /// `E[sum over registered paths of W sum_{vertices in m} D |q|^2]`, so that the initial
+    /// decay rate of pair `j`'s `g1`, `-d ln g1 / dt` at `t = 0+`, is `k^2 sum_m decay_jm / C_j(0)`
+    /// and material `m`'s share of it is `decay_jm / sum_m decay_jm` (the sensitivity of a
+    /// detector to the flow in each layer).
+    pub decay: MatrixEstimate,
     /// Paths that left through some detector.
     pub registered: u64,
     /// Number of sampled paths.
@@ -76,6 +86,21 @@ impl DetectorEstimate {
     pub fn curve(&self, j: usize) -> (Vec<Complex64>, Vec<Complex64>) {
         let nl = self.lags.len();
         (j * nl..(j + 1) * nl).map(|e| self.total.get(e, 0)).unzip()
+    }
+
+    /// The share of pair `j`'s initial Brownian decay rate from each material, with standard
+    /// errors from the materials' decay sums alone (their correlation with the total left out);
+    /// `None` where nothing decays.
+    pub fn decay_shares(&self, j: usize) -> Option<Vec<(f64, f64)>> {
+        let m = self.materials;
+        let sums: Vec<(f64, f64)> = (j * m..(j + 1) * m)
+            .map(|e| {
+                let (v, s) = self.decay.get(e, 0);
+                (v.re, s.re)
+            })
+            .collect();
+        let total: f64 = sums.iter().map(|s| s.0).sum();
+        (total > 0.0).then(|| sums.iter().map(|(v, s)| (v / total, s / total)).collect())
     }
 
     /// The readings (lag 0 of a static render) as the diagonal of a covariance estimate
@@ -116,17 +141,22 @@ struct Sink<'a, M: Medium, P> {
     arrival: DVec3,
     /// The stream of the next-event connections.
     rng: PathRng,
-    /// The first vertex's motion and the direction onwards (zero before `x2`).
+    /// The first vertex's motion and material, and the direction onwards (zero before `x2`).
     first: Motion,
+    material1: usize,
     w1: DVec3,
-    /// The current vertex, its motion and the direction it was reached along.
+    /// The current vertex, its motion and material, and the direction it was reached along.
     x: DVec3,
     here: Motion,
+    material: usize,
     w_in: DVec3,
-    /// `sum D |q|^2` and `sum q . U` over the interior vertices so far.
+    /// `sum D |q|^2` and `sum q . U` over the interior vertices so far, and the first sum per
+    /// material.
     y: f64,
     q: f64,
-    /// The path's values, `J x L`, whether it registered, and whether by single scattering.
+    y_material: Vec<f64>,
+    /// The path's values, `J x L` correlations then `J x M` decay sums (see
+    /// [`DetectorEstimate::decay`]), whether it registered, and whether by single scattering.
     values: Vec<Complex64>,
     registered: bool,
     single: bool,
@@ -180,10 +210,22 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         let y = self.y + y_last + self.first.diffusion * q1.length_squared();
         let q = self.q + q_last + q1.dot(self.first.drift);
         let w = weight * self.share;
-        let base = (self.source * nd + d) * nl;
+        let pair = self.source * nd + d;
+        let base = pair * nl;
         for (l, &t) in self.lags.iter().enumerate() {
             self.values[base + l] +=
                 w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
+        }
+        // The Brownian decay sums per material: the interior ones, the first and last vertices'.
+        let nm = self.y_material.len();
+        let decay = self.scene.len() * nl + pair * nm;
+        for (m, ym) in self.y_material.iter().enumerate() {
+            self.values[decay + m] += Complex64::from(w * ym);
+        }
+        self.values[decay + self.material1] +=
+            Complex64::from(w * self.first.diffusion * q1.length_squared());
+        if !single {
+            self.values[decay + self.material] += Complex64::from(w * y_last);
         }
         self.registered = true;
         self.single = single;
@@ -197,12 +239,15 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
 
     fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
         self.first = self.motion_at(x1);
+        self.material1 = self.scene.medium().material(x1);
         self.w1 = DVec3::ZERO;
         self.x = x1;
         self.here = self.first;
+        self.material = self.material1;
         self.w_in = DVec3::ZERO;
         self.y = 0.0;
         self.q = 0.0;
+        self.y_material.fill(0.0);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -210,13 +255,16 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
             // x_{b-1} is now interior: it turned the path from w_in into the direction it
             // scattered into (v.w_in, unless a face reflected the flight).
             let q = v.w_prev_out - self.w_in;
-            self.y += self.here.diffusion * q.length_squared();
+            let y = self.here.diffusion * q.length_squared();
+            self.y += y;
+            self.y_material[self.material] += y;
             self.q += q.dot(self.here.drift);
         } else {
             self.w1 = v.w12;
         }
         self.x = v.x;
         self.here = self.motion_at(v.x);
+        self.material = self.scene.medium().material(v.x);
         self.w_in = v.w_in;
         // Next-event connections to a point of each disc, weighed against the exit estimator
         // by the balance heuristic of the two densities of the exit point on the disc: `1 / |A|`
@@ -369,6 +417,7 @@ where
         })
         .collect::<Result<_, _>>()?;
     let n_sources = emissions.len() as u64;
+    let nm = scene.medium().materials();
     let init = || Sink {
         scene,
         motion: model,
@@ -380,13 +429,16 @@ where
         arrival: DVec3::ZERO,
         rng: PathRng::new(0, 0),
         first: Motion::default(),
+        material1: 0,
         w1: DVec3::ZERO,
         x: DVec3::ZERO,
         here: Motion::default(),
+        material: 0,
         w_in: DVec3::ZERO,
         y: 0.0,
         q: 0.0,
-        values: vec![Complex64::ZERO; j * nl],
+        y_material: vec![0.0; nm],
+        values: vec![Complex64::ZERO; j * (nl + nm)],
         registered: false,
         single: false,
     };
@@ -408,7 +460,7 @@ where
     };
     let Some((parts, Some(total))) = batch_moments(
         opts.paths,
-        j * nl,
+        j * (nl + nm),
         Layout::GeneralDiagonal,
         2,
         true,
@@ -420,12 +472,21 @@ where
     };
     let [single, multiple]: [MatrixEstimate; 2] =
         parts.try_into().expect("two parts were estimated");
+    // The first J L rows are the correlations, the next J M the decay sums.
+    let rows = |m: &MatrixEstimate, r: std::ops::Range<usize>| MatrixEstimate {
+        value: CMatrix::from_vec(r.len(), 1, r.clone().map(|e| m.value.get(e, 0)).collect()),
+        std_error: CMatrix::from_vec(r.len(), 1, r.map(|e| m.std_error.get(e, 0)).collect()),
+        samples: m.samples,
+    };
+    let (c, d) = (0..j * nl, j * nl..j * (nl + nm));
     Ok(Some(DetectorEstimate {
         lags,
         pairs: j,
-        single,
-        multiple,
-        total,
+        single: rows(&single, c.clone()),
+        multiple: rows(&multiple, c.clone()),
+        decay: rows(&total, d),
+        total: rows(&total, c),
+        materials: nm,
         registered: registered.into_inner(),
         paths: opts.paths,
     }))

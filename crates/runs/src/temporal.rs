@@ -37,6 +37,23 @@ pub struct Temporal {
     pub contrast: Option<Vec<f64>>,
     /// Number of sampled paths.
     pub paths: u64,
+    /// For detectors: each material's share of each pair's initial Brownian decay rate
+    /// (`speckle_estimators::DetectorEstimate::decay_shares`), `J x M` pair-major, with standard
+    /// errors; `None` for other sensors and for pooled renders.
+    pub decay_shares: Option<DecayShares>,
+}
+
+/// Each material's share of the initial decay of every pair's `g1` (the sensitivity of a
+/// detector to the flow in each layer): `J x M` tables, pair-major; NaN where a pair's
+/// correlation does not decay.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecayShares {
+    /// Number `M` of materials.
+    pub materials: usize,
+    /// The shares, `[j * M + m]`.
+    pub share: Vec<f64>,
+    /// Their standard errors (from the materials' decay sums alone).
+    pub stderr: Vec<f64>,
 }
 
 /// The problem's `[motion]` table, or an error naming `motion` when it has none.
@@ -82,14 +99,30 @@ fn render_temporal(
     if p.scene.has_detectors() {
         let est = crate::detectors::render(p, Some((&motion.model, &motion.lags)), opts, progress)?;
         let (mut c, mut se) = (vec![], vec![]);
+        let m = est.materials;
+        let (mut share, mut share_se) = (vec![], vec![]);
         for j in 0..est.pairs {
             let (v, s) = est.curve(j);
             c.extend(v);
             se.extend(s);
+            match est.decay_shares(j) {
+                Some(d) => d.into_iter().for_each(|(v, s)| {
+                    share.push(v);
+                    share_se.push(s);
+                }),
+                None => {
+                    share.extend(std::iter::repeat_n(f64::NAN, m));
+                    share_se.extend(std::iter::repeat_n(f64::NAN, m));
+                }
+            }
         }
-        return Ok(Temporal::from_correlation(
-            est.lags, est.pairs, c, se, est.paths,
-        ));
+        let mut t = Temporal::from_correlation(est.lags.clone(), est.pairs, c, se, est.paths);
+        t.decay_shares = Some(DecayShares {
+            materials: m,
+            share,
+            stderr: share_se,
+        });
+        return Ok(t);
     }
     let est = render_correlation(
         &p.scene,
@@ -153,6 +186,7 @@ impl Temporal {
             g2,
             contrast,
             paths,
+            decay_shares: None,
         }
     }
 }

@@ -35,6 +35,7 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "tissue_fibre",
         include_str!("../../../scenes/tissue_fibre.toml"),
     ),
+    ("head", include_str!("../../../scenes/head.toml")),
     (
         "spatiotemporal_2d",
         include_str!("../../../scenes/spatiotemporal_2d.toml"),

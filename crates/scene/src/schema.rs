@@ -126,7 +126,13 @@ pub struct MediumSpec {
     /// A voxel grid: the box is split into the voxels of a `.npy` array.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid: Option<GridSpec>,
-    /// Materials of a `kind = "materials"` grid, indexed by the grid's integer ids.
+    /// Layers along `z` instead of a grid file: the thicknesses of the layers from the face
+    /// of smallest `z`, layer `i` of material `i` of `[[medium.materials]]`; they add up to
+    /// `size[2]` (3D only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layers: Option<Vec<f64>>,
+    /// Materials of a `kind = "materials"` grid (or of `layers`), indexed by the grid's
+    /// integer ids.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub materials: Option<Vec<MaterialSpec>>,
 }

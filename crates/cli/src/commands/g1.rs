@@ -99,6 +99,19 @@ pub fn run(a: &G1Args) -> anyhow::Result<()> {
             [("contrast", encode_f8(&[j, nl], k))],
         );
     }
+    if let Some(d) = &t.decay_shares {
+        let m = d.materials;
+        files["decay_share_content"] = json!(
+            "detectors: decay_share (float64, (J, M)): material m's share of pair j's initial \
+             Brownian decay rate of g1 (the sensitivity to the flow in each layer or material; \
+             NaN where nothing decays); decay_share_stderr: its standard error"
+        );
+        let arrays = [
+            ("decay_share", encode_f8(&[j, m], &d.share)),
+            ("decay_share_stderr", encode_f8(&[j, m], &d.stderr)),
+        ];
+        stage_arrays(&mut staged, &mut files, n, arrays);
+    }
     let comparison = match &reference {
         Some(r) => Some(r.compare(&p, &renders).map_err(error::runs)?),
         None => None,
@@ -157,6 +170,21 @@ pub fn run(a: &G1Args) -> anyhow::Result<()> {
         threads(),
         100.0 * max_rel
     );
+    if let Some(d) = &t.decay_shares {
+        let m = d.materials;
+        for pair in 0..j {
+            let shares: Vec<String> = (0..m)
+                .map(|k| {
+                    let e = pair * m + k;
+                    format!("{:.3} +- {:.3}", d.share[e], d.stderr[e])
+                })
+                .collect();
+            say!(
+                "{n}: pair {pair}: share of the initial decay by material: {}",
+                shares.join(", ")
+            );
+        }
+    }
     if let Some(c) = &comparison {
         let w = c.worst();
         say!(

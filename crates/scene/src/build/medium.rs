@@ -289,13 +289,20 @@ pub fn build_medium(
     let coefficients_given =
         m.sigma_s.is_some() || m.mean_free_path.is_some() || m.albedo.is_some();
     let kind = m.grid.as_ref().map(|g| g.kind);
-    if m.materials.is_some() && kind != Some(GridKind::Materials) {
+    if m.layers.is_some() && m.grid.is_some() {
         return Err(invalid(
-            "medium.materials",
-            "only a grid of kind \"materials\" takes materials",
+            "medium.layers",
+            "give either layers or a grid file, not both",
         ));
     }
-    if kind == Some(GridKind::Materials) {
+    let materials = kind == Some(GridKind::Materials) || m.layers.is_some();
+    if m.materials.is_some() && !materials {
+        return Err(invalid(
+            "medium.materials",
+            "only a grid of kind \"materials\" or layers take materials",
+        ));
+    }
+    if materials {
         if coefficients_given || m.sigma_a.is_some() || m.particles.is_some() {
             return Err(invalid(
                 "medium.grid",
@@ -406,6 +413,16 @@ fn material_grid(
             dim,
         )?);
     }
+    if let Some(layers) = &m.layers {
+        let (dims, ids) = layer_voxels(layers, b, list.len(), dim)?;
+        let grid =
+            VoxelGrid::from_materials(b, dims, ids, materials).map_err(|e| grid_error(&e))?;
+        return Ok(BuiltMedium {
+            medium: AnyMedium::Grid(grid),
+            phases,
+            facts: None,
+        });
+    }
     let grid = m.grid.as_ref().expect("a materials grid");
     let (dims, a) = read_grid(&grid.file, files, dim)?;
     if !a.integer {
@@ -432,9 +449,100 @@ fn material_grid(
     })
 }
 
+/// Most voxels of the grid that `medium.layers` makes.
+pub const MAX_LAYER_VOXELS: usize = 100_000;
+
+/// The voxels of `medium.layers` over the box `b`: a `1 x 1 x n` grid whose voxels, of the
+/// largest common step of the thicknesses, hold the material ids of the layers in order.
+fn layer_voxels(
+    layers: &[f64],
+    b: Aabb,
+    materials: usize,
+    dim: Dimension,
+) -> Result<([usize; 3], Vec<u32>), SceneError> {
+    let field = "medium.layers";
+    if dim != Dimension::Three {
+        return Err(invalid(field, "layers need a 3D scene"));
+    }
+    if layers.len() != materials {
+        return Err(invalid(
+            field,
+            format!(
+                "{} layers but {materials} [[medium.materials]] entries: layer i is material i",
+                layers.len()
+            ),
+        ));
+    }
+    if let Some((i, t)) = layers
+        .iter()
+        .enumerate()
+        .find(|(_, t)| !(t.is_finite() && **t > 0.0))
+    {
+        return Err(invalid(
+            format!("{field}[{i}]"),
+            format!("must be finite and > 0 (got {t})"),
+        ));
+    }
+    let depth = b.size().z;
+    let sum: f64 = layers.iter().sum();
+    if (sum - depth).abs() > 1e-9 * depth {
+        return Err(invalid(
+            field,
+            format!("the thicknesses add up to {sum}, not to the box's size[2] = {depth}"),
+        ));
+    }
+    // The largest step that divides every thickness (to 1e-6 of the step).
+    let thinnest = layers.iter().copied().fold(f64::INFINITY, f64::min);
+    let step = (1..=MAX_LAYER_VOXELS)
+        .map(|k| thinnest / k as f64)
+        .take_while(|s| depth / s <= MAX_LAYER_VOXELS as f64 + 0.5)
+        .find(|s| {
+            layers
+                .iter()
+                .all(|t| ((t / s) - (t / s).round()).abs() < 1e-6)
+        })
+        .ok_or_else(|| {
+            invalid(
+                field,
+                format!(
+                    "the thicknesses have no common step that makes at most \
+                     {MAX_LAYER_VOXELS} voxels"
+                ),
+            )
+        })?;
+    let mut ids = Vec::new();
+    for (i, t) in layers.iter().enumerate() {
+        let n = (t / step).round() as usize;
+        ids.extend(std::iter::repeat_n(i as u32, n));
+    }
+    Ok(([1, 1, ids.len()], ids))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layers_become_voxels_of_their_common_step() {
+        let b = Aabb::new(
+            speckle_medium::DVec3::ZERO,
+            speckle_medium::DVec3::new(10.0, 10.0, 4.0),
+        )
+        .unwrap();
+        let (dims, ids) = layer_voxels(&[0.3, 0.7, 0.2, 0.4, 2.4], b, 5, Dimension::Three).unwrap();
+        assert_eq!(dims, [1, 1, 40]);
+        assert_eq!(ids.iter().filter(|&&i| i == 1).count(), 7);
+        assert_eq!((ids[0], ids[3], ids[39]), (0, 1, 4));
+        let e = |l: &[f64], n| {
+            layer_voxels(l, b, n, Dimension::Three)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(e(&[1.0, 2.0], 2).contains("add up to 3"));
+        assert!(e(&[1.0, 3.0], 3).contains("2 layers but 3"));
+        assert!(e(&[-1.0, 5.0], 2).starts_with("medium.layers[0]"));
+        assert!(e(&[4.0 / 3.0 * 1e-6, 4.0 - 4.0 / 3.0 * 1e-6], 2).contains("no common step"));
+    }
 
     #[test]
     fn mean_free_path_and_albedo_give_the_coefficients() {
