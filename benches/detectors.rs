@@ -69,6 +69,10 @@ fn detectors(c: &mut Criterion) {
     let techniques = [
         ("exit", DetectorTechniques::Exit),
         ("exit_and_next_event", DetectorTechniques::ExitAndNextEvent),
+        (
+            "exit_next_event_and_splitting",
+            DetectorTechniques::ExitNextEventAndSplitting,
+        ),
     ];
     for (name, t) in techniques {
         g.bench_function(format!("cube/detector/{name}"), |b| {

@@ -46,7 +46,7 @@ use num_complex::Complex64;
 use speckle_endpoints::{Detector, Source};
 use speckle_medium::Medium;
 use speckle_motion::{Motion, MotionModel};
-use speckle_paths::{Emission, Exit, PathRng, Vertex, VertexSink};
+use speckle_paths::{Emission, Exit, ForkSink, PathRng, Vertex, VertexSink, WeightWindow};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
 use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
@@ -232,6 +232,56 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
     }
 }
 
+/// What a split path's copies restore: the sink's per-path state at the split.
+#[derive(Clone)]
+struct Saved {
+    arrival: DVec3,
+    first: Motion,
+    material1: usize,
+    w1: DVec3,
+    x: DVec3,
+    here: Motion,
+    material: usize,
+    w_in: DVec3,
+    y: f64,
+    q: f64,
+    y_material: Vec<f64>,
+}
+
+impl<M: Medium, P: PhaseFunction> ForkSink for Sink<'_, M, P> {
+    type Saved = Saved;
+
+    fn save(&self) -> Saved {
+        Saved {
+            arrival: self.arrival,
+            first: self.first,
+            material1: self.material1,
+            w1: self.w1,
+            x: self.x,
+            here: self.here,
+            material: self.material,
+            w_in: self.w_in,
+            y: self.y,
+            q: self.q,
+            y_material: self.y_material.clone(),
+        }
+    }
+
+    fn restore(&mut self, s: &Saved) {
+        self.arrival = s.arrival;
+        self.first = s.first;
+        self.material1 = s.material1;
+        self.w1 = s.w1;
+        self.x = s.x;
+        self.here = s.here;
+        self.material = s.material;
+        self.w_in = s.w_in;
+        self.y = s.y;
+        self.q = s.q;
+        self.y_material.copy_from_slice(&s.y_material);
+    }
+}
+
 impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
     fn arrival(&mut self, dir: DVec3) {
         self.arrival = dir;
@@ -328,6 +378,41 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
     }
 }
 
+/// A weight window's target weight at a point.
+type Target = Box<dyn Fn(DVec3) -> f64 + Sync>;
+
+/// The splitting target of paths from a point source at `p` ([`DetectorTechniques`]); `None`
+/// where nothing attenuates (no absorption) or the source is outside the medium.
+fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) -> Option<Target> {
+    let m = scene.medium();
+    if !m.contains(p) {
+        return None;
+    }
+    let (sigma_t, sigma_s) = (m.sigma_t(p), m.sigma_s(p));
+    let mu_a = sigma_t - sigma_s;
+    let g = scene.phases()[0].mean_cosine();
+    let kappa = (3.0 * mu_a * (mu_a + sigma_s * (1.0 - g))).sqrt();
+    if !(kappa > 0.0 && kappa.is_finite()) {
+        return None;
+    }
+    // The importance of x: the sum over detectors of exp(-kappa (d_d(x) - d_d(p))), each
+    // detector's term 1 at the source, so that every detector draws its share of the copies
+    // whatever its distance.
+    let detectors: Vec<(Detector, f64)> = scene
+        .detectors()
+        .iter()
+        .map(|d| (*d, d.distance_bound(p)))
+        .collect();
+    let w0 = 4.0 * std::f64::consts::PI * m.albedo(p);
+    Some(Box::new(move |x| {
+        let importance: f64 = detectors
+            .iter()
+            .map(|(d, d0)| (-kappa * (d.distance_bound(x) - d0)).exp())
+            .sum();
+        w0 / importance
+    }))
+}
+
 /// Which techniques estimate a detector's reading.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DetectorTechniques {
@@ -335,9 +420,17 @@ pub enum DetectorTechniques {
     Exit,
     /// In addition, a next-event connection from every vertex `x_b`, `b >= 2`, to a uniform
     /// point of each disc, both weighed by the balance heuristic of the two densities of the
-    /// exit point (`1 / |A|` and the phase function's `rho cos / r^2`). The default.
-    #[default]
+    /// exit point (`1 / |A|` and the phase function's `rho cos / r^2`).
     ExitAndNextEvent,
+    /// In addition, paths from point sources split where they approach a detector and are
+    /// rouletted where they move away ([`speckle_paths::Tracer::trace_emitted_split`]), by a
+    /// weight window whose target is the emitted weight over the importance
+    /// `sum_d exp(-kappa (d_d(x) - d_d(p)))`, `d_d` the distance to disc `d`, `p` the source and
+    /// `kappa` the diffusion attenuation `sqrt(3 mu_a (mu_a + mu_s (1 - g)))` at the source
+    /// (each detector's term 1 at the source: every detector draws copies in proportion to how
+    /// much farther it is). The default.
+    #[default]
+    ExitNextEventAndSplitting,
 }
 
 /// Renders every (source, detector) pair of a detector scene ([`Scene::with_detectors`]) with
@@ -417,13 +510,22 @@ where
         })
         .collect::<Result<_, _>>()?;
     let n_sources = emissions.len() as u64;
+    let windows: Vec<Option<Target>> = emissions
+        .iter()
+        .map(|e| match (*e, techniques) {
+            (Emission::Point(p), DetectorTechniques::ExitNextEventAndSplitting) => {
+                splitting_target(scene, p)
+            }
+            _ => None,
+        })
+        .collect();
     let nm = scene.medium().materials();
     let init = || Sink {
         scene,
         motion: model,
         lags: &lags,
         k,
-        next_event: techniques == DetectorTechniques::ExitAndNextEvent,
+        next_event: techniques != DetectorTechniques::Exit,
         source: 0,
         share: n_sources as f64,
         arrival: DVec3::ZERO,
@@ -449,7 +551,17 @@ where
         sink.rng = PathRng::new(nee_seed, n);
         // Path n comes from source n mod S (each source a 1/S share of the paths).
         sink.source = (n % n_sources) as usize;
-        tracer.trace_emitted(emissions[sink.source], &mut rng, sink);
+        match &windows[sink.source] {
+            Some(target) => {
+                let window = WeightWindow {
+                    target: target.as_ref(),
+                    max_split: 8,
+                    max_particles: 1024,
+                };
+                tracer.trace_emitted_split(emissions[sink.source], &window, &mut rng, sink)
+            }
+            None => tracer.trace_emitted(emissions[sink.source], &mut rng, sink),
+        };
         if sink.registered {
             // Part 0: single scattering, part 1: multiple.
             sums[usize::from(!sink.single)].push_values(&sink.values, Complex64::ONE);

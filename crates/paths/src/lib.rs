@@ -24,15 +24,17 @@
 
 mod factor;
 mod first;
+mod light;
 
 mod tracer;
 
 pub use factor::{FactorValue, NoFactor, PathFactor};
 pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
+pub use light::{Emission, ForkSink, WeightWindow};
 pub use speckle_stats::PathRng;
 pub use tracer::{
-    Emission, Exit, MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, MAX_POSITION_BEAMS, Tracer,
-    TracerConfig, Vertex, VertexSink,
+    Exit, MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, MAX_POSITION_BEAMS, Tracer, TracerConfig,
+    Vertex, VertexSink,
 };
 
 /// Which path pairs a covariance estimate includes (Sec. 4.2, Eq. 26; App. A.4).

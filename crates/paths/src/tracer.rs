@@ -130,18 +130,6 @@ pub struct Exit {
     pub weight: f64,
 }
 
-/// Where the light of a light-tracing path comes from ([`Tracer::trace_emitted`]), in the
-/// absolute units of `docs/conventions.md`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Emission {
-    /// An isotropic point source of unit radiant intensity (`e^{ikr}/r`: power `4 pi`), inside,
-    /// on or outside the medium's box.
-    Point(DVec3),
-    /// A plane wave of unit intensity along the unit direction (a face at incidence `theta`
-    /// receives the power `cos(theta)` per unit area).
-    Plane(DVec3),
-}
-
 /// Receives the vertices of a sub-path as they are sampled.
 pub trait VertexSink {
     /// Light tracing ([`Tracer::trace_emitted`]): the direction in which the emitted light
@@ -174,18 +162,18 @@ pub trait VertexSink {
 /// draws no types (its random streams are those of a tracer without types).
 #[derive(Debug, Clone)]
 pub struct Tracer<'a, M, P> {
-    medium: &'a M,
-    phases: &'a [P],
+    pub(crate) medium: &'a M,
+    pub(crate) phases: &'a [P],
     typed: bool,
     first_vertex: FirstVertexSampler,
     first_direction: FirstDirectionSampler,
     points: Option<EndpointMixture>,
     beams: BeamStrategy,
-    max_vertices: u32,
+    pub(crate) max_vertices: u32,
     /// Whether vertices carry the balance heuristic of both orders ([`Vertex::both_orders`]).
     both_orders: bool,
     /// A refractive-index mismatch at the box's faces.
-    interface: Option<Interface>,
+    pub(crate) interface: Option<Interface>,
 }
 
 impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
@@ -463,7 +451,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
 
     /// The particle type at `x` (drawing a variate only in a medium of several types).
     #[inline]
-    fn sample_type(&self, x: DVec3, rng: &mut PathRng) -> usize {
+    pub(crate) fn sample_type(&self, x: DVec3, rng: &mut PathRng) -> usize {
         if self.typed {
             self.medium.sample_type(x, rng.next_f64())
         } else {
@@ -543,7 +531,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// Follows a path from its first vertex `x1` (particle type `type1`) along `w12` with the
     /// weight `weight`: flights, roulette, vertices and the exit, as [`Tracer::trace`] after
     /// its first vertex; returns the number of vertices.
-    fn walk<S: VertexSink>(
+    pub(crate) fn walk<S: VertexSink>(
         &self,
         x1: DVec3,
         type1: usize,
@@ -631,116 +619,6 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             reflections = 0;
         }
         b
-    }
-
-    /// Samples one path of light tracing from `emission` (analog emission, [`Emission`]): the
-    /// light enters the medium (refracted, or reflected away with the Fresnel probability, at a
-    /// mismatched face, [`Tracer::with_interface`]), its first flight (reflected by the faces on
-    /// the way) ends at the first vertex `x1`, whose weight is the emitted power times the
-    /// albedo there (no roulette at `x1`), and `w12` follows from the phase function about the
-    /// direction of arrival, which the sink receives first ([`VertexSink::arrival`]). Returns
-    /// the number of vertices (0 when the light leaves unscattered).
-    pub fn trace_emitted<S: VertexSink>(
-        &self,
-        emission: Emission,
-        rng: &mut PathRng,
-        sink: &mut S,
-    ) -> u32 {
-        let bounds = self.medium.bounds();
-        let (mut x, mut dir, power) = match emission {
-            Emission::Point(p) => {
-                let d = self.medium.dimension();
-                let dir = d.sample_uniform_direction(rng.next_2());
-                let power = 1.0 / d.uniform_direction_pdf();
-                if bounds.contains(p) {
-                    (p, dir, power)
-                } else {
-                    let Some((t0, _)) = bounds.clip(p, dir, 0.0, f64::INFINITY) else {
-                        return 0;
-                    };
-                    let normal = bounds.entry_normal(p, dir);
-                    let Some(inside) = self.enter(dir, normal, rng) else {
-                        return 0;
-                    };
-                    (p + t0 * dir, inside, power)
-                }
-            }
-            Emission::Plane(d) => {
-                // A face lit by the wave receives the power |d . n| times its area.
-                let size = bounds.size();
-                let mut faces = [(DVec3::ZERO, 0.0); 3];
-                for (a, face) in faces.iter_mut().enumerate() {
-                    let area = size[(a + 1) % 3] * size[(a + 2) % 3];
-                    let mut n = DVec3::ZERO;
-                    n[a] = if d[a] > 0.0 { -1.0 } else { 1.0 };
-                    *face = (n, (d[a].abs() * area).max(0.0));
-                }
-                let total: f64 = faces.iter().map(|f| f.1).sum();
-                if total.is_nan() || total <= 0.0 {
-                    return 0;
-                }
-                let mut c = rng.next_f64() * total;
-                let mut k = 0;
-                while k < 2 && c >= faces[k].1 {
-                    c -= faces[k].1;
-                    k += 1;
-                }
-                let (normal, _) = faces[k];
-                let mut x = bounds.lerp(rng.next_3());
-                x[k] = if normal[k] < 0.0 {
-                    bounds.min()[k]
-                } else {
-                    bounds.max()[k]
-                };
-                let Some(inside) = self.enter(d, normal, rng) else {
-                    return 0;
-                };
-                (x, inside, total)
-            }
-        };
-        // The first flight, reflected by the faces on the way.
-        let x1 = loop {
-            match self.medium.sample_flight(x, dir, &mut || rng.next_f64()) {
-                Some(t) => break x + t * dir,
-                None => {
-                    let Some(i) = self.interface else {
-                        return 0;
-                    };
-                    let point = x + bounds.exit_distance(x, dir) * dir;
-                    let normal = bounds.exit_normal(x, dir);
-                    if rng.next_f64() >= i.reflectance(dir.dot(normal)) {
-                        return 0;
-                    }
-                    dir = speckle_medium::boundary::reflect(dir, normal);
-                    x = point;
-                }
-            }
-        };
-        let weight = power * self.medium.albedo(x1);
-        if weight.is_nan() || weight <= 0.0 {
-            return 0;
-        }
-        let type1 = self.sample_type(x1, rng);
-        sink.arrival(dir);
-        sink.first(x1, type1, weight, rng);
-        let w12 = self.phases[type1].sample_direction(dir, rng.next_2());
-        self.walk(x1, type1, w12, weight, rng, sink)
-    }
-
-    /// Light from outside crossing a face of outward normal `normal` along `dir`: the direction
-    /// inside, or `None` when it is reflected away (with the Fresnel probability of a
-    /// mismatched interface).
-    #[inline]
-    fn enter(&self, dir: DVec3, normal: DVec3, rng: &mut PathRng) -> Option<DVec3> {
-        let Some(i) = self.interface else {
-            return Some(dir);
-        };
-        let cos = -dir.dot(normal);
-        let r = speckle_medium::boundary::reflectance(i.outside(), i.inside(), cos);
-        if rng.next_f64() < r {
-            return None;
-        }
-        speckle_medium::boundary::refract(i.outside() / i.inside(), dir, -normal)
     }
 }
 

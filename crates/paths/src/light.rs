@@ -1,0 +1,358 @@
+//! Light tracing: paths emitted by the sources, in the absolute units of
+//! `docs/conventions.md`, entering the medium through its faces (refracted or reflected at a
+//! mismatched interface), and splitting and Russian roulette by a weight window.
+
+use crate::PathRng;
+use crate::tracer::{Exit, Tracer, Vertex, VertexSink};
+use glam::DVec3;
+use speckle_medium::Medium;
+use speckle_phase::PhaseFunction;
+
+/// Where the light of a light-tracing path comes from ([`Tracer::trace_emitted`]), in the
+/// absolute units of `docs/conventions.md`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Emission {
+    /// An isotropic point source of unit radiant intensity (`e^{ikr}/r`: power `4 pi`), inside,
+    /// on or outside the medium's box.
+    Point(DVec3),
+    /// A plane wave of unit intensity along the unit direction (a face at incidence `theta`
+    /// receives the power `cos(theta)` per unit area).
+    Plane(DVec3),
+}
+
+/// A sink whose per-path state can be saved at a split and restored for each copy
+/// ([`Tracer::trace_emitted_split`]).
+pub trait ForkSink: VertexSink {
+    /// The saved state.
+    type Saved;
+    /// The state now (after the vertex where the path splits).
+    fn save(&self) -> Self::Saved;
+    /// Restores a saved state before a copy continues.
+    fn restore(&mut self, saved: &Self::Saved);
+}
+
+/// A weight window for [`Tracer::trace_emitted_split`]: the target weight of a path at each
+/// point (the window is `[target / 2, 2 target]`), and limits on the copies.
+pub struct WeightWindow<'w> {
+    /// The target weight at a point; not finite or not positive: no window there.
+    pub target: &'w (dyn Fn(DVec3) -> f64 + Sync),
+    /// Most copies a path splits into at one vertex.
+    pub max_split: u32,
+    /// Most particles (the path and its copies) of one path.
+    pub max_particles: u32,
+}
+
+/// A particle of a split path: where it is, and what its sink and stream were.
+struct Particle<T> {
+    x1: DVec3,
+    w12: DVec3,
+    /// Its last vertex, the direction it arrived along and the particle type there.
+    here: DVec3,
+    w_in: DVec3,
+    ty: usize,
+    b: u32,
+    /// The direction onwards when already sampled (the first flight), else sampled from the
+    /// phase function about `w_in`.
+    dir: Option<DVec3>,
+    weight: f64,
+    /// A copy's own stream (`None`: the path's).
+    rng: Option<PathRng>,
+    saved: Option<T>,
+}
+
+impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
+    /// Samples one path of light tracing from `emission` (analog emission, [`Emission`]): the
+    /// light enters the medium (refracted, or reflected away with the Fresnel probability, at a
+    /// mismatched face, [`Tracer::with_interface`]), its first flight (reflected by the faces on
+    /// the way) ends at the first vertex `x1`, whose weight is the emitted power times the
+    /// albedo there (no roulette at `x1`), and `w12` follows from the phase function about the
+    /// direction of arrival, which the sink receives first ([`VertexSink::arrival`]). Returns
+    /// the number of vertices (0 when the light leaves unscattered).
+    pub fn trace_emitted<S: VertexSink>(
+        &self,
+        emission: Emission,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> u32 {
+        let Some((x1, type1, w12, weight)) = self.emit(emission, rng, sink) else {
+            return 0;
+        };
+        self.walk(x1, type1, w12, weight, rng, sink)
+    }
+
+    /// [`Tracer::trace_emitted`] with splitting and Russian roulette by a weight window
+    /// ([`WeightWindow`]): where the path's weight exceeds twice the window's target at a
+    /// vertex it is split into copies of equal weight (each its own random stream, from the
+    /// path's), where it falls below half the target it survives with the probability
+    /// `weight / target` at the target weight. Both keep every expectation (each copy, and each
+    /// survivor, carries the weight it stands for), so any target function gives an unbiased
+    /// estimate; a target that falls towards the detectors (the reciprocal of an importance)
+    /// spends the paths where they count. The sink's state is saved at each split and restored
+    /// for each copy ([`ForkSink`]); the copies' contributions add to the path's.
+    pub fn trace_emitted_split<S: ForkSink>(
+        &self,
+        emission: Emission,
+        window: &WeightWindow<'_>,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> u32 {
+        let Some((x1, type1, w12, weight)) = self.emit(emission, rng, sink) else {
+            return 0;
+        };
+        self.walk_split(x1, type1, w12, weight, window, rng, sink)
+    }
+
+    /// The emission and first flight of [`Tracer::trace_emitted`]: the first vertex, its type,
+    /// the first direction and the weight, the sink told of the arrival and the first vertex;
+    /// `None` when the light leaves unscattered.
+    fn emit<S: VertexSink>(
+        &self,
+        emission: Emission,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> Option<(DVec3, usize, DVec3, f64)> {
+        let bounds = self.medium.bounds();
+        let (mut x, mut dir, power) = match emission {
+            Emission::Point(p) => {
+                let d = self.medium.dimension();
+                let dir = d.sample_uniform_direction(rng.next_2());
+                let power = 1.0 / d.uniform_direction_pdf();
+                if bounds.contains(p) {
+                    (p, dir, power)
+                } else {
+                    let (t0, _) = bounds.clip(p, dir, 0.0, f64::INFINITY)?;
+                    let normal = bounds.entry_normal(p, dir);
+                    let inside = self.enter(dir, normal, rng)?;
+                    (p + t0 * dir, inside, power)
+                }
+            }
+            Emission::Plane(d) => {
+                // A face lit by the wave receives the power |d . n| times its area.
+                let size = bounds.size();
+                let mut faces = [(DVec3::ZERO, 0.0); 3];
+                for (a, face) in faces.iter_mut().enumerate() {
+                    let area = size[(a + 1) % 3] * size[(a + 2) % 3];
+                    let mut n = DVec3::ZERO;
+                    n[a] = if d[a] > 0.0 { -1.0 } else { 1.0 };
+                    *face = (n, (d[a].abs() * area).max(0.0));
+                }
+                let total: f64 = faces.iter().map(|f| f.1).sum();
+                if total.is_nan() || total <= 0.0 {
+                    return None;
+                }
+                let mut c = rng.next_f64() * total;
+                let mut k = 0;
+                while k < 2 && c >= faces[k].1 {
+                    c -= faces[k].1;
+                    k += 1;
+                }
+                let (normal, _) = faces[k];
+                let mut x = bounds.lerp(rng.next_3());
+                x[k] = if normal[k] < 0.0 {
+                    bounds.min()[k]
+                } else {
+                    bounds.max()[k]
+                };
+                let inside = self.enter(d, normal, rng)?;
+                (x, inside, total)
+            }
+        };
+        // The first flight, reflected by the faces on the way.
+        let x1 = loop {
+            match self.medium.sample_flight(x, dir, &mut || rng.next_f64()) {
+                Some(t) => break x + t * dir,
+                None => {
+                    let i = self.interface?;
+                    let point = x + bounds.exit_distance(x, dir) * dir;
+                    let normal = bounds.exit_normal(x, dir);
+                    if rng.next_f64() >= i.reflectance(dir.dot(normal)) {
+                        return None;
+                    }
+                    dir = speckle_medium::boundary::reflect(dir, normal);
+                    x = point;
+                }
+            }
+        };
+        let weight = power * self.medium.albedo(x1);
+        if weight.is_nan() || weight <= 0.0 {
+            return None;
+        }
+        let type1 = self.sample_type(x1, rng);
+        sink.arrival(dir);
+        sink.first(x1, type1, weight, rng);
+        let w12 = self.phases[type1].sample_direction(dir, rng.next_2());
+        Some((x1, type1, w12, weight))
+    }
+
+    /// The walk of [`Tracer::trace_emitted_split`]: particles from a stack, each as
+    /// [`Tracer::walk`] with the weight window applied at every vertex it reaches.
+    #[allow(clippy::too_many_arguments)]
+    fn walk_split<S: ForkSink>(
+        &self,
+        x1: DVec3,
+        type1: usize,
+        w12: DVec3,
+        weight: f64,
+        window: &WeightWindow<'_>,
+        rng: &mut PathRng,
+        sink: &mut S,
+    ) -> u32 {
+        let mut pending: Vec<Particle<S::Saved>> = vec![];
+        let mut particles = 1u32;
+        let mut vertices = 1u32;
+        // The particle being followed: from x1 along w12, with the path's own stream.
+        let mut p = Particle {
+            x1,
+            w12,
+            here: x1,
+            w_in: DVec3::ZERO,
+            ty: type1,
+            b: 1,
+            dir: Some(w12),
+            weight,
+            rng: None,
+            saved: None,
+        };
+        loop {
+            let mut own = p.rng.take();
+            let r = match own.as_mut() {
+                Some(own) => own,
+                None => &mut *rng,
+            };
+            vertices += self.follow(&mut p, type1, window, r, sink, &mut pending, &mut particles);
+            let Some(next) = pending.pop() else {
+                break;
+            };
+            p = next;
+            if let Some(s) = p.saved.take() {
+                sink.restore(&s);
+            }
+        }
+        vertices
+    }
+
+    /// Follows particle `p` to its end, splitting it onto `pending` and rouletting it by the
+    /// window; returns the vertices it added.
+    #[allow(clippy::too_many_arguments)]
+    fn follow<S: ForkSink>(
+        &self,
+        p: &mut Particle<S::Saved>,
+        type1: usize,
+        window: &WeightWindow<'_>,
+        rng: &mut PathRng,
+        sink: &mut S,
+        pending: &mut Vec<Particle<S::Saved>>,
+        particles: &mut u32,
+    ) -> u32 {
+        let bounds = self.medium.bounds();
+        let mut added = 0;
+        let mut dir = match p.dir {
+            Some(d) => d,
+            None => self.phases[p.ty].sample_direction(p.w_in, rng.next_2()),
+        };
+        let (mut x, mut scattered, mut reflections) = (p.here, dir, 0u32);
+        while p.b < self.max_vertices && sink.keep_going() {
+            let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
+                let point = x + bounds.exit_distance(x, dir) * dir;
+                let mut leaving = dir;
+                if let Some(i) = self.interface {
+                    let normal = bounds.exit_normal(x, dir);
+                    if rng.next_f64() < i.reflectance(dir.dot(normal)) {
+                        dir = speckle_medium::boundary::reflect(dir, normal);
+                        x = point;
+                        reflections += 1;
+                        continue;
+                    }
+                    leaving = i.refract(dir, normal).unwrap_or(dir);
+                }
+                sink.exit(
+                    &Exit {
+                        index: p.b,
+                        x1: p.x1,
+                        w12: p.w12,
+                        x: p.here,
+                        w_in: p.w_in,
+                        w_out: scattered,
+                        dir: leaving,
+                        point,
+                        ty: p.ty,
+                        weight: p.weight,
+                        reflections,
+                    },
+                    rng,
+                );
+                break;
+            };
+            let next = x + d * dir;
+            if rng.next_f64() >= self.medium.albedo(next) {
+                break;
+            }
+            p.b += 1;
+            added += 1;
+            let ty = self.sample_type(next, rng);
+            sink.vertex(
+                &Vertex {
+                    index: p.b,
+                    x1: p.x1,
+                    w12: p.w12,
+                    x: next,
+                    w_in: dir,
+                    w_prev_out: scattered,
+                    type1,
+                    ty,
+                    weight: p.weight,
+                    both_orders: f64::NAN,
+                },
+                rng,
+            );
+            p.here = next;
+            p.w_in = dir;
+            p.ty = ty;
+            // The weight window at the new vertex.
+            let target = (window.target)(next);
+            if target > 0.0 && target.is_finite() {
+                if p.weight > 2.0 * target && *particles < window.max_particles {
+                    let room = window.max_particles - *particles;
+                    let m = ((p.weight / target).ceil() as u32)
+                        .min(window.max_split)
+                        .min(room + 1);
+                    if m > 1 {
+                        p.weight /= f64::from(m);
+                        for _ in 1..m {
+                            pending.push(Particle {
+                                dir: None,
+                                rng: Some(PathRng::new(rng.next_u64(), 0)),
+                                saved: Some(sink.save()),
+                                ..*p
+                            });
+                        }
+                        *particles += m - 1;
+                    }
+                } else if p.weight < 0.5 * target {
+                    if rng.next_f64() >= p.weight / target {
+                        break;
+                    }
+                    p.weight = target;
+                }
+            }
+            dir = self.phases[ty].sample_direction(dir, rng.next_2());
+            x = next;
+            scattered = dir;
+            reflections = 0;
+        }
+        added
+    }
+
+    #[inline]
+    fn enter(&self, dir: DVec3, normal: DVec3, rng: &mut PathRng) -> Option<DVec3> {
+        let Some(i) = self.interface else {
+            return Some(dir);
+        };
+        let cos = -dir.dot(normal);
+        let r = speckle_medium::boundary::reflectance(i.outside(), i.inside(), cos);
+        if rng.next_f64() < r {
+            return None;
+        }
+        speckle_medium::boundary::refract(i.outside() / i.inside(), dir, -normal)
+    }
+}
