@@ -127,20 +127,12 @@ pub const NEXT_EVENT_DEPTH: f64 = 5.0;
 /// NEXT_EVENT_KEY)`, so its path is that of the exit estimator alone.
 pub const NEXT_EVENT_KEY: u64 = 0x0064_6574_6563; // "detec"
 
-/// The per-path state: the running momentum-transfer sums and the buffer of one path's values.
-struct Sink<'a, M: Medium, P> {
-    scene: &'a Scene<M, P>,
-    motion: Option<&'a MotionModel>,
-    lags: &'a [f64],
-    k: f64,
-    next_event: bool,
-    /// The source that emitted the path, the factor of its share of the paths (the number of
-    /// sources), and the direction the light arrived at `x1` along.
-    source: usize,
-    share: f64,
+/// A path's state along the way: what its next contributions depend on. The copies of a split
+/// path restore it ([`ForkSink`]).
+#[derive(Debug, Clone, Default)]
+struct PathState {
+    /// The direction the light arrived at `x1` along.
     arrival: DVec3,
-    /// The stream of the next-event connections.
-    rng: PathRng,
     /// The first vertex's motion and material, and the direction onwards (zero before `x2`).
     first: Motion,
     material1: usize,
@@ -155,6 +147,23 @@ struct Sink<'a, M: Medium, P> {
     y: f64,
     q: f64,
     y_material: Vec<f64>,
+}
+
+/// The sink of the detector estimator: a path's state and the buffer of its values.
+struct Sink<'a, M: Medium, P> {
+    scene: &'a Scene<M, P>,
+    motion: Option<&'a MotionModel>,
+    lags: &'a [f64],
+    k: f64,
+    next_event: bool,
+    /// The source that emitted the path and the factor of its share of the paths (the number
+    /// of sources).
+    source: usize,
+    share: f64,
+    /// The stream of the next-event connections.
+    rng: PathRng,
+    /// Where the path is (saved and restored for the copies of a split path).
+    path: PathState,
     /// The path's values, `J x L` correlations then `J x M` decay sums (see
     /// [`DetectorEstimate::decay`]), whether it registered, and whether by single scattering.
     values: Vec<Complex64>,
@@ -180,8 +189,9 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         match self.scene.medium().uniform_sigma_t() {
             Some(s) => {
                 // The depth below the face's plane first (a dot product), then the distance.
-                let depth = (self.x - det.center()).dot(det.normal()).abs();
-                s * depth <= NEXT_EVENT_DEPTH && s * det.distance_bound(self.x) <= NEXT_EVENT_DEPTH
+                let depth = (self.path.x - det.center()).dot(det.normal()).abs();
+                s * depth <= NEXT_EVENT_DEPTH
+                    && s * det.distance_bound(self.path.x) <= NEXT_EVENT_DEPTH
             }
             None => true,
         }
@@ -194,21 +204,21 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         let nl = self.lags.len();
         let nd = self.scene.detectors().len();
         let k2 = self.k * self.k;
-        let w1 = if single { w_out } else { self.w1 };
+        let w1 = if single { w_out } else { self.path.w1 };
         // The last vertex's transfer (b >= 2) at its motion.
         let (y_last, q_last) = if single {
             (0.0, 0.0)
         } else {
-            let q = w_out - self.w_in;
+            let q = w_out - self.path.w_in;
             (
-                self.here.diffusion * q.length_squared(),
-                q.dot(self.here.drift),
+                self.path.here.diffusion * q.length_squared(),
+                q.dot(self.path.here.drift),
             )
         };
         // The first vertex turns the arriving light into w1.
-        let q1 = w1 - self.arrival;
-        let y = self.y + y_last + self.first.diffusion * q1.length_squared();
-        let q = self.q + q_last + q1.dot(self.first.drift);
+        let q1 = w1 - self.path.arrival;
+        let y = self.path.y + y_last + self.path.first.diffusion * q1.length_squared();
+        let q = self.path.q + q_last + q1.dot(self.path.first.drift);
         let w = weight * self.share;
         let pair = self.source * nd + d;
         let base = pair * nl;
@@ -217,105 +227,67 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
                 w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
         }
         // The Brownian decay sums per material: the interior ones, the first and last vertices'.
-        let nm = self.y_material.len();
+        let nm = self.path.y_material.len();
         let decay = self.scene.len() * nl + pair * nm;
-        for (m, ym) in self.y_material.iter().enumerate() {
+        for (m, ym) in self.path.y_material.iter().enumerate() {
             self.values[decay + m] += Complex64::from(w * ym);
         }
-        self.values[decay + self.material1] +=
-            Complex64::from(w * self.first.diffusion * q1.length_squared());
+        self.values[decay + self.path.material1] +=
+            Complex64::from(w * self.path.first.diffusion * q1.length_squared());
         if !single {
-            self.values[decay + self.material] += Complex64::from(w * y_last);
+            self.values[decay + self.path.material] += Complex64::from(w * y_last);
         }
         self.registered = true;
         self.single = single;
     }
 }
 
-/// What a split path's copies restore: the sink's per-path state at the split.
-#[derive(Clone)]
-struct Saved {
-    arrival: DVec3,
-    first: Motion,
-    material1: usize,
-    w1: DVec3,
-    x: DVec3,
-    here: Motion,
-    material: usize,
-    w_in: DVec3,
-    y: f64,
-    q: f64,
-    y_material: Vec<f64>,
-}
-
 impl<M: Medium, P: PhaseFunction> ForkSink for Sink<'_, M, P> {
-    type Saved = Saved;
+    type Saved = PathState;
 
-    fn save(&self) -> Saved {
-        Saved {
-            arrival: self.arrival,
-            first: self.first,
-            material1: self.material1,
-            w1: self.w1,
-            x: self.x,
-            here: self.here,
-            material: self.material,
-            w_in: self.w_in,
-            y: self.y,
-            q: self.q,
-            y_material: self.y_material.clone(),
-        }
+    fn save(&self) -> PathState {
+        self.path.clone()
     }
 
-    fn restore(&mut self, s: &Saved) {
-        self.arrival = s.arrival;
-        self.first = s.first;
-        self.material1 = s.material1;
-        self.w1 = s.w1;
-        self.x = s.x;
-        self.here = s.here;
-        self.material = s.material;
-        self.w_in = s.w_in;
-        self.y = s.y;
-        self.q = s.q;
-        self.y_material.copy_from_slice(&s.y_material);
+    fn restore(&mut self, saved: &PathState) {
+        self.path.clone_from(saved);
     }
 }
 
 impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
     fn arrival(&mut self, dir: DVec3) {
-        self.arrival = dir;
+        self.path.arrival = dir;
     }
 
     fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
-        self.first = self.motion_at(x1);
-        self.material1 = self.scene.medium().material(x1);
-        self.w1 = DVec3::ZERO;
-        self.x = x1;
-        self.here = self.first;
-        self.material = self.material1;
-        self.w_in = DVec3::ZERO;
-        self.y = 0.0;
-        self.q = 0.0;
-        self.y_material.fill(0.0);
+        self.path.first = self.motion_at(x1);
+        self.path.material1 = self.scene.medium().material(x1);
+        self.path.w1 = DVec3::ZERO;
+        self.path.x = x1;
+        self.path.here = self.path.first;
+        self.path.material = self.path.material1;
+        self.path.w_in = DVec3::ZERO;
+        self.path.y = 0.0;
+        self.path.q = 0.0;
+        self.path.y_material.fill(0.0);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
         if v.index > 2 {
             // x_{b-1} is now interior: it turned the path from w_in into the direction it
             // scattered into (v.w_in, unless a face reflected the flight).
-            let q = v.w_prev_out - self.w_in;
-            let y = self.here.diffusion * q.length_squared();
-            self.y += y;
-            self.y_material[self.material] += y;
-            self.q += q.dot(self.here.drift);
+            let q = v.w_prev_out - self.path.w_in;
+            let y = self.path.here.diffusion * q.length_squared();
+            self.path.y += y;
+            self.path.y_material[self.path.material] += y;
+            self.path.q += q.dot(self.path.here.drift);
         } else {
-            self.w1 = v.w12;
+            self.path.w1 = v.w12;
         }
-        self.x = v.x;
-        self.here = self.motion_at(v.x);
-        self.material = self.scene.medium().material(v.x);
-        self.w_in = v.w_in;
+        self.path.x = v.x;
+        self.path.here = self.motion_at(v.x);
+        self.path.material = self.scene.medium().material(v.x);
+        self.path.w_in = v.w_in;
         // Next-event connections to a point of each disc, weighed against the exit estimator
         // by the balance heuristic of the two densities of the exit point on the disc: `1 / |A|`
         // and the phase function's `rho(w_in -> w) cos / r^2`.
@@ -528,18 +500,11 @@ where
         next_event: techniques != DetectorTechniques::Exit,
         source: 0,
         share: n_sources as f64,
-        arrival: DVec3::ZERO,
         rng: PathRng::new(0, 0),
-        first: Motion::default(),
-        material1: 0,
-        w1: DVec3::ZERO,
-        x: DVec3::ZERO,
-        here: Motion::default(),
-        material: 0,
-        w_in: DVec3::ZERO,
-        y: 0.0,
-        q: 0.0,
-        y_material: vec![0.0; nm],
+        path: PathState {
+            y_material: vec![0.0; nm],
+            ..PathState::default()
+        },
         values: vec![Complex64::ZERO; j * (nl + nm)],
         registered: false,
         single: false,

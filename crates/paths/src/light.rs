@@ -3,7 +3,7 @@
 //! mismatched interface), and splitting and Russian roulette by a weight window.
 
 use crate::PathRng;
-use crate::tracer::{Exit, Tracer, Vertex, VertexSink};
+use crate::tracer::{AtFace, Exit, Tracer, Vertex, VertexSink};
 use glam::DVec3;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
@@ -161,16 +161,10 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         let x1 = loop {
             match self.medium.sample_flight(x, dir, &mut || rng.next_f64()) {
                 Some(t) => break x + t * dir,
-                None => {
-                    let i = self.interface?;
-                    let point = x + bounds.exit_distance(x, dir) * dir;
-                    let normal = bounds.exit_normal(x, dir);
-                    if rng.next_f64() >= i.reflectance(dir.dot(normal)) {
-                        return None;
-                    }
-                    dir = speckle_medium::boundary::reflect(dir, normal);
-                    x = point;
-                }
+                None => match self.at_face(x, dir, rng) {
+                    AtFace::Reflected { point, dir: d } => (x, dir) = (point, d),
+                    AtFace::Leaves { .. } => return None,
+                },
             }
         };
         let weight = power * self.medium.albedo(x1);
@@ -244,7 +238,6 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         pending: &mut Vec<Particle<S::Saved>>,
         particles: &mut u32,
     ) -> u32 {
-        let bounds = self.medium.bounds();
         let mut added = 0;
         let mut dir = match p.dir {
             Some(d) => d,
@@ -253,18 +246,14 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         let (mut x, mut scattered, mut reflections) = (p.here, dir, 0u32);
         while p.b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
-                let point = x + bounds.exit_distance(x, dir) * dir;
-                let mut leaving = dir;
-                if let Some(i) = self.interface {
-                    let normal = bounds.exit_normal(x, dir);
-                    if rng.next_f64() < i.reflectance(dir.dot(normal)) {
-                        dir = speckle_medium::boundary::reflect(dir, normal);
-                        x = point;
+                let (point, leaving) = match self.at_face(x, dir, rng) {
+                    AtFace::Reflected { point, dir: d } => {
+                        (x, dir) = (point, d);
                         reflections += 1;
                         continue;
                     }
-                    leaving = i.refract(dir, normal).unwrap_or(dir);
-                }
+                    AtFace::Leaves { point, dir } => (point, dir),
+                };
                 sink.exit(
                     &Exit {
                         index: p.b,

@@ -130,6 +130,14 @@ pub struct Exit {
     pub weight: f64,
 }
 
+/// Where a flight that reaches a face of the box goes ([`Tracer::at_face`]).
+pub(crate) enum AtFace {
+    /// Back into the medium from `point` along `dir`.
+    Reflected { point: DVec3, dir: DVec3 },
+    /// Out of the medium at `point` along `dir` (refracted).
+    Leaves { point: DVec3, dir: DVec3 },
+}
+
 /// Receives the vertices of a sub-path as they are sampled.
 pub trait VertexSink {
     /// Light tracing ([`Tracer::trace_emitted`]): the direction in which the emitted light
@@ -528,6 +536,25 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         self.walk(x1, type1, w12, weight, rng, sink)
     }
 
+    /// A flight from `x` along `dir` that reaches the box's boundary: reflected back in with
+    /// the Fresnel probability of the interface (one variate drawn only with an interface), or
+    /// leaving it, refracted.
+    #[inline]
+    pub(crate) fn at_face(&self, x: DVec3, dir: DVec3, rng: &mut PathRng) -> AtFace {
+        let bounds = self.medium.bounds();
+        let point = x + bounds.exit_distance(x, dir) * dir;
+        let Some(i) = self.interface else {
+            return AtFace::Leaves { point, dir };
+        };
+        let normal = bounds.exit_normal(x, dir);
+        if rng.next_f64() < i.reflectance(dir.dot(normal)) {
+            let dir = speckle_medium::boundary::reflect(dir, normal);
+            return AtFace::Reflected { point, dir };
+        }
+        let dir = i.refract(dir, normal).unwrap_or(dir);
+        AtFace::Leaves { point, dir }
+    }
+
     /// Follows a path from its first vertex `x1` (particle type `type1`) along `w12` with the
     /// weight `weight`: flights, roulette, vertices and the exit, as [`Tracer::trace`] after
     /// its first vertex; returns the number of vertices.
@@ -546,19 +573,14 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         let (mut here, mut scattered, mut reflections) = (x1, w12, 0u32);
         while b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
-                let bounds = self.medium.bounds();
-                let point = x + bounds.exit_distance(x, dir) * dir;
-                let mut leaving = dir;
-                if let Some(i) = self.interface {
-                    let normal = bounds.exit_normal(x, dir);
-                    if rng.next_f64() < i.reflectance(dir.dot(normal)) {
-                        dir = speckle_medium::boundary::reflect(dir, normal);
-                        x = point;
+                let (point, leaving) = match self.at_face(x, dir, rng) {
+                    AtFace::Reflected { point, dir: d } => {
+                        (x, dir) = (point, d);
                         reflections += 1;
                         continue;
                     }
-                    leaving = i.refract(dir, normal).unwrap_or(dir);
-                }
+                    AtFace::Leaves { point, dir } => (point, dir),
+                };
                 sink.exit(
                     &Exit {
                         index: b,
