@@ -3,7 +3,7 @@
 //! mismatched interface), and splitting and Russian roulette by a weight window.
 
 use crate::PathRng;
-use crate::tracer::{AtFace, Exit, Tracer, Vertex, VertexSink};
+use crate::tracer::{AtFace, Tracer, VertexSink, Walker};
 use glam::DVec3;
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
@@ -44,17 +44,10 @@ pub struct WeightWindow<'w> {
 
 /// A particle of a split path: where it is, and what its sink and stream were.
 struct Particle<T> {
-    x1: DVec3,
-    w12: DVec3,
-    /// Its last vertex, the direction it arrived along and the particle type there.
-    here: DVec3,
-    w_in: DVec3,
-    ty: usize,
-    b: u32,
+    walker: Walker,
     /// The direction onwards when already sampled (the first flight), else sampled from the
-    /// phase function about `w_in`.
+    /// phase function about the direction of arrival.
     dir: Option<DVec3>,
-    weight: f64,
     /// A copy's own stream (`None`: the path's).
     rng: Option<PathRng>,
     saved: Option<T>,
@@ -196,14 +189,8 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         let mut vertices = 1u32;
         // The particle being followed: from x1 along w12, with the path's own stream.
         let mut p = Particle {
-            x1,
-            w12,
-            here: x1,
-            w_in: DVec3::ZERO,
-            ty: type1,
-            b: 1,
+            walker: Walker::start(x1, type1, w12, weight),
             dir: Some(w12),
-            weight,
             rng: None,
             saved: None,
         };
@@ -213,7 +200,43 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 Some(own) => own,
                 None => &mut *rng,
             };
-            vertices += self.follow(&mut p, type1, window, r, sink, &mut pending, &mut particles);
+            let mut w = p.walker;
+            let dir = match p.dir {
+                Some(d) => d,
+                None => self.phases[w.ty].sample_direction(w.w_in, r.next_2()),
+            };
+            // The weight window at each new vertex.
+            let split = |w: &mut Walker, rng: &mut PathRng, sink: &mut S| {
+                let target = (window.target)(w.here);
+                if !(target > 0.0 && target.is_finite()) {
+                    return true;
+                }
+                if w.weight > 2.0 * target && particles < window.max_particles {
+                    let room = window.max_particles - particles;
+                    let m = ((w.weight / target).ceil() as u32)
+                        .min(window.max_split)
+                        .min(room + 1);
+                    if m > 1 {
+                        w.weight /= f64::from(m);
+                        for _ in 1..m {
+                            pending.push(Particle {
+                                walker: *w,
+                                dir: None,
+                                rng: Some(PathRng::new(rng.next_u64(), 0)),
+                                saved: Some(sink.save()),
+                            });
+                        }
+                        particles += m - 1;
+                    }
+                } else if w.weight < 0.5 * target {
+                    if rng.next_f64() >= w.weight / target {
+                        return false;
+                    }
+                    w.weight = target;
+                }
+                true
+            };
+            vertices += self.walk_from(&mut w, dir, r, sink, split);
             let Some(next) = pending.pop() else {
                 break;
             };
@@ -225,113 +248,9 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         vertices
     }
 
-    /// Follows particle `p` to its end, splitting it onto `pending` and rouletting it by the
-    /// window; returns the vertices it added.
-    #[allow(clippy::too_many_arguments)]
-    fn follow<S: ForkSink>(
-        &self,
-        p: &mut Particle<S::Saved>,
-        type1: usize,
-        window: &WeightWindow<'_>,
-        rng: &mut PathRng,
-        sink: &mut S,
-        pending: &mut Vec<Particle<S::Saved>>,
-        particles: &mut u32,
-    ) -> u32 {
-        let mut added = 0;
-        let mut dir = match p.dir {
-            Some(d) => d,
-            None => self.phases[p.ty].sample_direction(p.w_in, rng.next_2()),
-        };
-        let (mut x, mut scattered, mut reflections) = (p.here, dir, 0u32);
-        while p.b < self.max_vertices && sink.keep_going() {
-            let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
-                let (point, leaving) = match self.at_face(x, dir, rng) {
-                    AtFace::Reflected { point, dir: d } => {
-                        (x, dir) = (point, d);
-                        reflections += 1;
-                        continue;
-                    }
-                    AtFace::Leaves { point, dir } => (point, dir),
-                };
-                sink.exit(
-                    &Exit {
-                        index: p.b,
-                        x1: p.x1,
-                        w12: p.w12,
-                        x: p.here,
-                        w_in: p.w_in,
-                        w_out: scattered,
-                        dir: leaving,
-                        point,
-                        ty: p.ty,
-                        weight: p.weight,
-                        reflections,
-                    },
-                    rng,
-                );
-                break;
-            };
-            let next = x + d * dir;
-            if rng.next_f64() >= self.medium.albedo(next) {
-                break;
-            }
-            p.b += 1;
-            added += 1;
-            let ty = self.sample_type(next, rng);
-            sink.vertex(
-                &Vertex {
-                    index: p.b,
-                    x1: p.x1,
-                    w12: p.w12,
-                    x: next,
-                    w_in: dir,
-                    w_prev_out: scattered,
-                    type1,
-                    ty,
-                    weight: p.weight,
-                    both_orders: f64::NAN,
-                },
-                rng,
-            );
-            p.here = next;
-            p.w_in = dir;
-            p.ty = ty;
-            // The weight window at the new vertex.
-            let target = (window.target)(next);
-            if target > 0.0 && target.is_finite() {
-                if p.weight > 2.0 * target && *particles < window.max_particles {
-                    let room = window.max_particles - *particles;
-                    let m = ((p.weight / target).ceil() as u32)
-                        .min(window.max_split)
-                        .min(room + 1);
-                    if m > 1 {
-                        p.weight /= f64::from(m);
-                        for _ in 1..m {
-                            pending.push(Particle {
-                                dir: None,
-                                rng: Some(PathRng::new(rng.next_u64(), 0)),
-                                saved: Some(sink.save()),
-                                ..*p
-                            });
-                        }
-                        *particles += m - 1;
-                    }
-                } else if p.weight < 0.5 * target {
-                    if rng.next_f64() >= p.weight / target {
-                        break;
-                    }
-                    p.weight = target;
-                }
-            }
-            dir = self.phases[ty].sample_direction(dir, rng.next_2());
-            x = next;
-            scattered = dir;
-            reflections = 0;
-        }
-        added
-    }
-
+    /// Light from outside crossing a face of outward normal `normal` along `dir`: the direction
+    /// inside, or `None` when it is reflected away (with the Fresnel probability of a
+    /// mismatched interface).
     #[inline]
     fn enter(&self, dir: DVec3, normal: DVec3, rng: &mut PathRng) -> Option<DVec3> {
         let Some(i) = self.interface else {

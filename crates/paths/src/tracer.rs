@@ -567,11 +567,27 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         rng: &mut PathRng,
         sink: &mut S,
     ) -> u32 {
-        let (mut x, mut dir, mut b) = (x1, w12, 1u32);
-        let (mut w_in, mut ty_here) = (DVec3::ZERO, type1);
-        // The last vertex, the direction it scattered into, and reflections since.
-        let (mut here, mut scattered, mut reflections) = (x1, w12, 0u32);
-        while b < self.max_vertices && sink.keep_going() {
+        let mut w = Walker::start(x1, type1, w12, weight);
+        1 + self.walk_from(&mut w, w12, rng, sink, |_, _, _| true)
+    }
+
+    /// Follows the walker `w` from its last vertex along `dir` to the path's end: flights (and
+    /// reflections at the faces), roulette on the albedo, vertices handed to `sink`, the exit;
+    /// after each new vertex `at_vertex` may change the walker (its weight: splitting and
+    /// roulette of light tracing) or end it (`false`). Returns the vertices added.
+    pub(crate) fn walk_from<S: VertexSink>(
+        &self,
+        w: &mut Walker,
+        mut dir: DVec3,
+        rng: &mut PathRng,
+        sink: &mut S,
+        mut at_vertex: impl FnMut(&mut Walker, &mut PathRng, &mut S) -> bool,
+    ) -> u32 {
+        // Where the flight starts, the direction the last vertex scattered into, and the
+        // reflections since.
+        let (mut x, mut scattered, mut reflections) = (w.here, dir, 0u32);
+        let mut added = 0;
+        while w.b < self.max_vertices && sink.keep_going() {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
                 let (point, leaving) = match self.at_face(x, dir, rng) {
                     AtFace::Reflected { point, dir: d } => {
@@ -583,16 +599,16 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 };
                 sink.exit(
                     &Exit {
-                        index: b,
-                        x1,
-                        w12,
-                        x: here,
-                        w_in,
+                        index: w.b,
+                        x1: w.x1,
+                        w12: w.w12,
+                        x: w.here,
+                        w_in: w.w_in,
                         w_out: scattered,
                         dir: leaving,
                         point,
-                        ty: ty_here,
-                        weight,
+                        ty: w.ty,
+                        weight: w.weight,
                         reflections,
                     },
                     rng,
@@ -604,7 +620,8 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             if rng.next_f64() >= self.medium.albedo(next) {
                 break;
             }
-            b += 1;
+            w.b += 1;
+            added += 1;
             let ty = self.sample_type(next, rng);
             let both_orders = match self.points {
                 _ if !self.both_orders => f64::NAN,
@@ -614,33 +631,64 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 // give sigma_s at every vertex but the first, phase functions are symmetric).
                 Some(_) => {
                     let p_rev = self.joint_pdf(next, -dir, ty);
-                    1.0 / (1.0 + weight * p_rev / self.medium.sigma_s(next))
+                    1.0 / (1.0 + w.weight * p_rev / self.medium.sigma_s(next))
                 }
             };
             sink.vertex(
                 &Vertex {
-                    index: b,
-                    x1,
-                    w12,
+                    index: w.b,
+                    x1: w.x1,
+                    w12: w.w12,
                     x: next,
                     w_in: dir,
                     w_prev_out: scattered,
-                    type1,
+                    type1: w.type1,
                     ty,
-                    weight,
+                    weight: w.weight,
                     both_orders,
                 },
                 rng,
             );
-            w_in = dir;
-            ty_here = ty;
+            (w.here, w.w_in, w.ty) = (next, dir, ty);
+            if !at_vertex(w, rng, sink) {
+                break;
+            }
             dir = self.phases[ty].sample_direction(dir, rng.next_2());
             x = next;
-            here = next;
             scattered = dir;
             reflections = 0;
         }
-        b
+        added
+    }
+}
+
+/// Where a walking path is: its first vertex and direction, its last vertex with the direction
+/// it arrived along and the particle type there, its vertex count and its weight.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Walker {
+    pub(crate) x1: DVec3,
+    pub(crate) w12: DVec3,
+    pub(crate) type1: usize,
+    pub(crate) here: DVec3,
+    pub(crate) w_in: DVec3,
+    pub(crate) ty: usize,
+    pub(crate) b: u32,
+    pub(crate) weight: f64,
+}
+
+impl Walker {
+    /// A path at its first vertex `x1`, about to leave along `w12`.
+    pub(crate) fn start(x1: DVec3, type1: usize, w12: DVec3, weight: f64) -> Self {
+        Self {
+            x1,
+            w12,
+            type1,
+            here: x1,
+            w_in: DVec3::ZERO,
+            ty: type1,
+            b: 1,
+            weight,
+        }
     }
 }
 
