@@ -38,6 +38,7 @@
 //! backscattering cross term of a path and its reverse averages out (its cone is about
 //! `lambda / l*` wide); the reading is the incoherent sum.
 
+use crate::records::{PER_MATERIAL, Parameters, PathRecords, Record};
 use crate::{
     CMatrix, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
@@ -147,6 +148,11 @@ struct PathState {
     y: f64,
     q: f64,
     y_material: Vec<f64>,
+    /// The length of the first flight inside the medium (to `x1`).
+    first_length: f64,
+    /// With records: per material, `sum |q|^2` and `sum q` over the interior vertices so far
+    /// ([`crate::PathRecords`]).
+    transfers: Vec<f64>,
 }
 
 /// The sink of the detector estimator: a path's state and the buffer of its values.
@@ -169,6 +175,10 @@ struct Sink<'a, M: Medium, P> {
     values: Vec<Complex64>,
     registered: bool,
     single: bool,
+    /// Whether the path's contributions are recorded, and the path's records so far.
+    record: bool,
+    records: Vec<Record>,
+    record_transfers: Vec<f64>,
 }
 
 impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
@@ -199,8 +209,16 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
 
     /// Adds `weight` (the path weight times the detector's reading and the technique's
     /// weight) to the pair of the path's source and detector `d`: the path leaves its last
-    /// vertex, the current one (or `x1` when `single`), along `w_out`.
-    fn register(&mut self, d: usize, w_out: DVec3, weight: f64, single: bool) {
+    /// vertex, the current one (or `x1` when `single`), along `w_out`, after `vertices`
+    /// vertices and flights of `length` from `x1`.
+    fn register(
+        &mut self,
+        d: usize,
+        w_out: DVec3,
+        weight: f64,
+        single: bool,
+        (vertices, length): (u32, f64),
+    ) {
         let nl = self.lags.len();
         let nd = self.scene.detectors().len();
         let k2 = self.k * self.k;
@@ -239,6 +257,40 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         }
         self.registered = true;
         self.single = single;
+        if self.record {
+            self.records.push(Record {
+                path: 0,
+                pair: pair as u32,
+                vertices,
+                weight: w,
+                length: self.path.first_length + length,
+            });
+            let start = self.record_transfers.len();
+            self.record_transfers
+                .extend_from_slice(&self.path.transfers);
+            let mut add = |m: usize, q: DVec3| {
+                let o = start + m * PER_MATERIAL;
+                self.record_transfers[o] += q.length_squared();
+                self.record_transfers[o + 1] += q.x;
+                self.record_transfers[o + 2] += q.y;
+                self.record_transfers[o + 3] += q.z;
+            };
+            add(self.path.material1, q1);
+            if !single {
+                add(self.path.material, w_out - self.path.w_in);
+            }
+        }
+    }
+
+    /// Adds the transfer `q` at a vertex of material `m` to the path's recorded sums.
+    fn add_transfer(&mut self, m: usize, q: DVec3) {
+        if self.record {
+            let t = &mut self.path.transfers[m * PER_MATERIAL..(m + 1) * PER_MATERIAL];
+            t[0] += q.length_squared();
+            t[1] += q.x;
+            t[2] += q.y;
+            t[3] += q.z;
+        }
     }
 }
 
@@ -255,8 +307,9 @@ impl<M: Medium, P: PhaseFunction> ForkSink for Sink<'_, M, P> {
 }
 
 impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
-    fn arrival(&mut self, dir: DVec3) {
+    fn arrival(&mut self, dir: DVec3, length: f64) {
         self.path.arrival = dir;
+        self.path.first_length = length;
     }
 
     fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
@@ -270,6 +323,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
         self.path.y = 0.0;
         self.path.q = 0.0;
         self.path.y_material.fill(0.0);
+        self.path.transfers.fill(0.0);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -281,6 +335,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
             self.path.y += y;
             self.path.y_material[self.path.material] += y;
             self.path.q += q.dot(self.path.here.drift);
+            self.add_transfer(self.path.material, q);
         } else {
             self.path.w1 = v.w12;
         }
@@ -321,7 +376,8 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
                 continue;
             }
             let mis_over_pdf = 1.0 / (1.0 / det.area() + rho * geometry);
-            self.register(d, w, v.weight * f * mis_over_pdf, false);
+            let length = v.length + r2.sqrt();
+            self.register(d, w, v.weight * f * mis_over_pdf, false, (v.index, length));
         }
     }
 
@@ -345,7 +401,13 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
                     / r2;
                 q / (q + 1.0 / det.area())
             };
-            self.register(d, e.w_out, e.weight * reading * mis, single);
+            self.register(
+                d,
+                e.w_out,
+                e.weight * reading * mis,
+                single,
+                (e.index, e.length),
+            );
         }
     }
 }
@@ -439,6 +501,53 @@ where
     M: Medium + Sync,
     P: PhaseFunction + Sync,
 {
+    Ok(render(scene, motion, opts, techniques, false, progress)?.map(|(e, _)| e))
+}
+
+/// The largest memory the records of [`render_detector_records`] may take (bytes): a render
+/// whose records would take more stops with an error naming `render.paths`.
+pub const MAX_RECORD_BYTES: usize = 1 << 31;
+
+/// [`render_detectors`] (default techniques, the same estimate bitwise) that also keeps the
+/// records of every contribution ([`PathRecords`]), for evaluations at other parameters
+/// without tracing again. The motion (`None`: at rest) gives the rendered parameters.
+///
+/// Returns `Ok(None)` when cancelled; an error naming `render.paths` when the records would
+/// take more than [`MAX_RECORD_BYTES`].
+pub fn render_detector_records<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    progress: &dyn Progress,
+) -> Result<Option<(DetectorEstimate, PathRecords)>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    Ok(render(
+        scene,
+        motion,
+        opts,
+        DetectorTechniques::default(),
+        true,
+        progress,
+    )?
+    .map(|(e, r)| (e, r.expect("records were kept"))))
+}
+
+/// The render of [`render_detectors_with`], with the records when `record`.
+fn render<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    techniques: DetectorTechniques,
+    record: bool,
+    progress: &dyn Progress,
+) -> Result<Option<(DetectorEstimate, Option<PathRecords>)>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
     let invalid = |field: &str, reason: String| EstimatorError::InvalidInput {
         field: field.into(),
         reason,
@@ -503,12 +612,21 @@ where
         rng: PathRng::new(0, 0),
         path: PathState {
             y_material: vec![0.0; nm],
+            transfers: vec![0.0; if record { nm * PER_MATERIAL } else { 0 }],
             ..PathState::default()
         },
         values: vec![Complex64::ZERO; j * (nl + nm)],
         registered: false,
         single: false,
+        record,
+        records: vec![],
+        record_transfers: vec![],
     };
+    // The records of each path that registered, as (path, records, transfers), and their size.
+    type PathChunk = (u64, Vec<Record>, Vec<f64>);
+    let chunks: std::sync::Mutex<Vec<PathChunk>> = std::sync::Mutex::new(vec![]);
+    let record_bytes = std::sync::atomic::AtomicUsize::new(0);
+    let per_record = std::mem::size_of::<Record>() + 8 * PER_MATERIAL * nm;
     let seed = opts.seed;
     let nee_seed = derive_seed(seed, NEXT_EVENT_KEY);
     let path = |sink: &mut Sink<M, P>, n: u64, sums: &mut [BatchSum], _poll: &mut Poll| {
@@ -534,6 +652,22 @@ where
             sink.registered = false;
             registered.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
+        if !sink.records.is_empty() {
+            let size = sink.records.len() * per_record;
+            let before = record_bytes.fetch_add(size, std::sync::atomic::Ordering::Relaxed);
+            if before + size <= MAX_RECORD_BYTES {
+                let mut records = std::mem::take(&mut sink.records);
+                records.iter_mut().for_each(|r| r.path = n);
+                let transfers = std::mem::take(&mut sink.record_transfers);
+                chunks
+                    .lock()
+                    .expect("no panic holds the lock")
+                    .push((n, records, transfers));
+            } else {
+                sink.records.clear();
+                sink.record_transfers.clear();
+            }
+        }
     };
     let Some((parts, Some(total))) = batch_moments(
         opts.paths,
@@ -556,15 +690,57 @@ where
         samples: m.samples,
     };
     let (c, d) = (0..j * nl, j * nl..j * (nl + nm));
-    Ok(Some(DetectorEstimate {
-        lags,
-        pairs: j,
-        single: rows(&single, c.clone()),
-        multiple: rows(&multiple, c.clone()),
-        decay: rows(&total, d),
-        total: rows(&total, c),
-        materials: nm,
-        registered: registered.into_inner(),
-        paths: opts.paths,
-    }))
+    let records = if record {
+        let bytes = record_bytes.into_inner();
+        if bytes > MAX_RECORD_BYTES {
+            return Err(invalid(
+                "render.paths",
+                format!(
+                    "the records of {} paths would take {} MiB, over the limit of {} MiB: \
+                     render fewer paths",
+                    opts.paths,
+                    bytes >> 20,
+                    MAX_RECORD_BYTES >> 20
+                ),
+            ));
+        }
+        let mut chunks = chunks.into_inner().expect("no panic holds the lock");
+        chunks.sort_unstable_by_key(|c| c.0);
+        let (mut records, mut transfers) = (vec![], vec![]);
+        for (_, r, t) in chunks {
+            records.extend(r);
+            transfers.extend(t);
+        }
+        let m = scene.medium();
+        let center = m.bounds().lerp([0.5; 3]);
+        let coefficients = (nm == 1 && scene.phases().len() == 1)
+            .then(|| m.uniform_sigma_t())
+            .flatten()
+            .map(|t| (m.sigma_s(center), t - m.sigma_s(center)));
+        let rendered = Parameters {
+            motions: (0..nm)
+                .map(|i| model.map_or(Motion::default(), |m| *m.of_material(i)))
+                .collect(),
+            coefficients,
+        };
+        Some(PathRecords::new(
+            j, nm, k, opts.paths, rendered, records, transfers,
+        ))
+    } else {
+        None
+    };
+    Ok(Some((
+        DetectorEstimate {
+            lags,
+            pairs: j,
+            single: rows(&single, c.clone()),
+            multiple: rows(&multiple, c.clone()),
+            decay: rows(&total, d),
+            total: rows(&total, c),
+            materials: nm,
+            registered: registered.into_inner(),
+            paths: opts.paths,
+        },
+        records,
+    )))
 }

@@ -51,6 +51,7 @@ mod detector;
 mod field_sequences;
 mod fields;
 mod lag_powers;
+mod records;
 
 pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_correlation};
 pub use covariance::{
@@ -59,13 +60,14 @@ pub use covariance::{
     render_intensity_with, render_single_scattering,
 };
 pub use detector::{
-    DetectorEstimate, DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY, render_detectors,
-    render_detectors_with,
+    DetectorEstimate, DetectorTechniques, MAX_RECORD_BYTES, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY,
+    render_detector_records, render_detectors, render_detectors_with,
 };
 pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };
 pub use fields::{FieldEstimate, FieldOptions, FieldShard, render_fields, render_fields_shard};
+pub use records::{Derivative, Parameters, PathRecords, Record, Replayed};
 // The types every caller of the estimators handles, defined in the crates below.
 pub use speckle_endpoints::{Pair, Sensor, Source};
 pub use speckle_paths::Coherence;

@@ -162,6 +162,7 @@ mod tests {
             ty: 0,
             weight: 1.0,
             both_orders: 0.5,
+            length: 0.0,
         }
     }
 

@@ -150,12 +150,19 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 (x, inside, total)
             }
         };
-        // The first flight, reflected by the faces on the way.
+        // The first flight, reflected by the faces on the way, and its length.
+        let mut length = 0.0;
         let x1 = loop {
             match self.medium.sample_flight(x, dir, &mut || rng.next_f64()) {
-                Some(t) => break x + t * dir,
+                Some(t) => {
+                    length += t;
+                    break x + t * dir;
+                }
                 None => match self.at_face(x, dir, rng) {
-                    AtFace::Reflected { point, dir: d } => (x, dir) = (point, d),
+                    AtFace::Reflected { point, dir: d } => {
+                        length += (point - x).length();
+                        (x, dir) = (point, d);
+                    }
                     AtFace::Leaves { .. } => return None,
                 },
             }
@@ -165,7 +172,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             return None;
         }
         let type1 = self.sample_type(x1, rng);
-        sink.arrival(dir);
+        sink.arrival(dir, length);
         sink.first(x1, type1, weight, rng);
         let w12 = self.phases[type1].sample_direction(dir, rng.next_2());
         Some((x1, type1, w12, weight))

@@ -82,6 +82,8 @@ pub struct Vertex {
     /// heuristic `q(x) / (q(x) + q(x^r))` of the joint densities of the first vertex and
     /// direction in the two orders ([`Tracer::with_endpoints`]).
     pub both_orders: f64,
+    /// The length of the path's flights from `x1` to `x_b` (along reflections off the faces).
+    pub length: f64,
 }
 
 impl Vertex {
@@ -128,6 +130,8 @@ pub struct Exit {
     /// the exit flight and the roulette at earlier vertices are sampled with the densities of
     /// the throughput, so the exit carries the same weight as the vertices.
     pub weight: f64,
+    /// The length of the path's flights from `x1` to the exit `point` (along reflections).
+    pub length: f64,
 }
 
 /// Where a flight that reaches a face of the box goes ([`Tracer::at_face`]).
@@ -141,10 +145,10 @@ pub(crate) enum AtFace {
 /// Receives the vertices of a sub-path as they are sampled.
 pub trait VertexSink {
     /// Light tracing ([`Tracer::trace_emitted`]): the direction in which the emitted light
-    /// arrives at the first vertex, given just before [`VertexSink::first`]. The default
-    /// ignores it.
+    /// arrives at the first vertex and the length of its flights inside the medium to it,
+    /// given just before [`VertexSink::first`]. The default ignores them.
     #[inline]
-    fn arrival(&mut self, _dir: DVec3) {}
+    fn arrival(&mut self, _dir: DVec3, _length: f64) {}
     /// The first vertex `x1` with the particle type there, and the single-scattering weight
     /// `sigma_s(x1) / q_o(x1)`.
     fn first(&mut self, x1: DVec3, ty: usize, weight: f64, rng: &mut PathRng);
@@ -591,6 +595,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             let Some(d) = self.medium.sample_flight(x, dir, &mut || rng.next_f64()) else {
                 let (point, leaving) = match self.at_face(x, dir, rng) {
                     AtFace::Reflected { point, dir: d } => {
+                        w.length += (point - x).length();
                         (x, dir) = (point, d);
                         reflections += 1;
                         continue;
@@ -610,6 +615,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                         ty: w.ty,
                         weight: w.weight,
                         reflections,
+                        length: w.length + (point - x).length(),
                     },
                     rng,
                 );
@@ -621,6 +627,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 break;
             }
             w.b += 1;
+            w.length += d;
             added += 1;
             let ty = self.sample_type(next, rng);
             let both_orders = match self.points {
@@ -646,6 +653,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     ty,
                     weight: w.weight,
                     both_orders,
+                    length: w.length,
                 },
                 rng,
             );
@@ -663,7 +671,8 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
 }
 
 /// Where a walking path is: its first vertex and direction, its last vertex with the direction
-/// it arrived along and the particle type there, its vertex count and its weight.
+/// it arrived along and the particle type there, its vertex count, its weight and the length of
+/// its flights since `x1`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Walker {
     pub(crate) x1: DVec3,
@@ -674,6 +683,7 @@ pub(crate) struct Walker {
     pub(crate) ty: usize,
     pub(crate) b: u32,
     pub(crate) weight: f64,
+    pub(crate) length: f64,
 }
 
 impl Walker {
@@ -688,6 +698,7 @@ impl Walker {
             ty: type1,
             b: 1,
             weight,
+            length: 0.0,
         }
     }
 }
