@@ -29,6 +29,7 @@
 
 pub use speckle_endpoints as endpoints;
 pub use speckle_estimators as estimators;
+pub use speckle_inverse as inverse;
 pub use speckle_medium as medium;
 pub use speckle_motion as motion;
 pub use speckle_paths as paths;

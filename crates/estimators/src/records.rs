@@ -143,9 +143,9 @@ impl PathRecords {
             ));
         }
         for (m, motion) in p.motions.iter().enumerate() {
-            if !(motion.diffusion >= 0.0 && motion.diffusion.is_finite())
-                || !motion.drift.is_finite()
-            {
+            let finite =
+                motion.diffusion >= 0.0 && motion.diffusion.is_finite() && motion.drift.is_finite();
+            if !finite {
                 return Err(format!("material {m}: motion {motion:?} is not finite"));
             }
         }

@@ -22,6 +22,7 @@
 
 mod detectors;
 mod file;
+pub mod fit;
 mod identity;
 mod merge;
 pub mod temporal;
@@ -156,6 +157,9 @@ pub enum RunError {
     /// Shards are missing, overlap, or are of different runs.
     #[error(transparent)]
     Shard(#[from] ShardError),
+    /// A fit failed ([`fit`]).
+    #[error(transparent)]
+    Fit(#[from] speckle_inverse::FitError),
     /// A shard file cannot be read, or is not one.
     #[error("{}: {reason}", path.display())]
     File {

@@ -215,6 +215,8 @@ pub struct Problem {
     pub medium_facts: Option<MediumFacts>,
     /// Moving scatterers and time lags (`[motion]`), when given.
     pub motion: Option<crate::build::motion::MotionSettings>,
+    /// What `speckle fit` fits (`[fit]`), when given.
+    pub fit: Option<crate::build::fit::FitSettings>,
 }
 
 impl Problem {
@@ -335,6 +337,21 @@ impl Problem {
             )?),
             None => None,
         };
+        let fit = match &file.fit {
+            Some(f) => {
+                let m = &file.medium;
+                let facts = crate::build::fit::SceneFacts {
+                    pairs: scene.len(),
+                    detectors: scene.has_detectors(),
+                    homogeneous: m.particles.is_none()
+                        && m.grid.is_none()
+                        && m.layers.is_none()
+                        && m.materials.is_none(),
+                };
+                Some(crate::build::fit::build(f, &file, facts, files)?)
+            }
+            None => None,
+        };
         // Check the sampling configuration against the medium now rather than at render time.
         if scene.has_detectors() {
             scene.detector_tracer(render.sampling)?;
@@ -355,6 +372,7 @@ impl Problem {
             output,
             medium_facts: facts,
             motion,
+            fit,
         })
     }
 

@@ -48,6 +48,48 @@ pub struct SceneFile {
     /// when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion: Option<MotionSpec>,
+    /// What `speckle fit` fits to a measurement (`docs/fitting.md`); ignored by the other
+    /// commands.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitSpec>,
+}
+
+/// `[fit]`: a measurement and the parameters of the scene to fit to it (`speckle fit`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitSpec {
+    /// The measurement file (CSV), relative to the scene file's folder; `speckle fit --data`
+    /// gives or replaces it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<PathBuf>,
+    /// What the file holds: `"g2"` or `"g1"` (rows `lag, value[, stderr]` of one pair) or
+    /// `"intensity"` (rows `pair, reading[, stderr]`).
+    pub quantity: String,
+    /// The (source, detector) pair of a `g2` or `g1` curve (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pair: Option<usize>,
+    /// The parameters to fit (at least one).
+    pub parameters: Vec<FitParameterSpec>,
+    /// Groups of paths of the jackknife that adds the Monte Carlo's uncertainty to the
+    /// intervals (default 32, 4 to 128).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub groups: Option<usize>,
+    /// Confidence level of the intervals (default 0.95).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<f64>,
+}
+
+/// One entry of `[[fit.parameters]]`: a field of the scene (or of the detector model) and the
+/// range it is fitted in.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitParameterSpec {
+    /// `"motion.diffusion"`, `"motion.materials[i].diffusion"`, `"medium.sigma_s"`,
+    /// `"medium.sigma_a"`, `"beta"` (the coherence factor of `g2 = 1 + beta |g1|^2`) or
+    /// `"scale"` (a factor on every intensity: the source power times the coupling).
+    pub field: String,
+    /// The range `[low, high]` the value is sought in.
+    pub range: [f64; 2],
 }
 
 /// `[motion]`: how the scatterers move (Eq. 1: Brownian diffusion `D`, in length^2 per time

@@ -15,6 +15,7 @@
 //! the same values with the same checks.
 
 pub mod endpoints;
+pub mod fit;
 pub mod medium;
 pub mod motion;
 pub mod phase;
