@@ -109,8 +109,8 @@ fn replays_agree_with_fresh_renders_at_other_parameters() {
     let reference = records.replay(&at(D, SIGMA_S, SIGMA_A), &lags, 32, &[]);
     let (rv, _) = reference.curve(0);
     let (ev, _) = est.curve(0);
-    for l in 0..lags.len() {
-        let (a, b) = (rv.get(l, 0), ev[l]);
+    for (l, &b) in ev.iter().enumerate() {
+        let a = rv.get(l, 0);
         assert!((a - b).norm() <= 1e-12 * b.norm(), "lag {l}: {a} != {b}");
     }
     // Elsewhere: against fresh renders.

@@ -65,6 +65,12 @@ enum Command {
     /// g1(t) = C(t) / C(0) of every pair at the scene's `[motion]` lags; with `--reference`,
     /// compared with a reference curve (the authors' MCX curve of Fig. 5, for one).
     G1(g1::G1Args),
+    /// Fit the scene's `[fit]` parameters (blood-flow index per material, beta, sigma_a,
+    /// sigma_s, a calibration scale) to a measured g2 or g1 curve or to detector intensities:
+    /// one render keeps its path records, replayed at other parameters (docs/fitting.md);
+    /// estimates with intervals that include the Monte Carlo's uncertainty, residuals, and a
+    /// plot of the data against the fitted curve.
+    Fit(fit::FitArgs),
     /// Spatio-temporal map of moving scatterers (Bar et al. 2023, Eqs. 36-37, Fig. 7): the
     /// correlation C[0, k](t) of the first pair with every pair k at the scene's `[motion]`
     /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the
@@ -157,6 +163,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Covariance(a) => covariance::run(&a),
         Command::Intensity(a) => intensity::run(&a),
         Command::G1(a) => g1::run(&a),
+        Command::Fit(a) => fit::run(&a),
         Command::Map(a) => map::run(&a),
         Command::Tracking(a) => tracking::run(&a),
         Command::Fields(a) => fields::run(&a),

@@ -59,8 +59,11 @@ pub struct FitOutcome {
     pub fitted_stderr: Vec<f64>,
     /// `(y - fitted) / sigma`.
     pub residuals: Vec<f64>,
-    /// `sum residuals^2`.
+    /// `sum residuals^2` (the measurement's errors alone).
     pub chi2: f64,
+    /// `sum (y - fitted)^2 / (sigma^2 + fitted_stderr^2)`: with the model's Monte Carlo
+    /// error too (the goodness of fit to compare with `dof`; `chi2` alone grows with it).
+    pub chi2_with_model_error: f64,
     /// Degrees of freedom `n - p`.
     pub dof: usize,
     /// The smallest effective fraction of the re-weighting over the pairs involved (1 when the
@@ -289,6 +292,9 @@ pub fn fit(
     };
     let stderr_monte_carlo: Vec<f64> = (0..np).map(|p| jackknife(&|k| steps[k][p])).collect();
     let fitted_stderr: Vec<f64> = (0..n).map(|i| jackknife(&|k| curves[k][i])).collect();
+    let chi2_with_model_error: f64 = (0..n)
+        .map(|i| (data.y[i] - e.values[i]).powi(2) / (sigma[i].powi(2) + fitted_stderr[i].powi(2)))
+        .sum();
     let stderr: Vec<f64> = stderr_measurement
         .iter()
         .zip(&stderr_monte_carlo)
@@ -342,6 +348,7 @@ pub fn fit(
         fitted_stderr,
         residuals,
         chi2,
+        chi2_with_model_error,
         dof,
         effective_fraction,
         evaluations,

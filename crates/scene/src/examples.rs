@@ -36,6 +36,7 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../../scenes/tissue_fibre.toml"),
     ),
     ("head", include_str!("../../../scenes/head.toml")),
+    ("dcs_fit", include_str!("../../../scenes/dcs_fit.toml")),
     (
         "spatiotemporal_2d",
         include_str!("../../../scenes/spatiotemporal_2d.toml"),
@@ -43,10 +44,16 @@ pub const EXAMPLES: &[(&str, &str)] = &[
 ];
 
 /// `(name, text)` of the embedded data files, which scenes name as `embedded:NAME`.
-pub const DATA: &[(&str, &str)] = &[(
-    "mudiff_cbs_2d/amplitude_function.csv",
-    include_str!("../../../validation/data/mudiff_cbs_2d/amplitude_function.csv"),
-)];
+pub const DATA: &[(&str, &str)] = &[
+    (
+        "mudiff_cbs_2d/amplitude_function.csv",
+        include_str!("../../../validation/data/mudiff_cbs_2d/amplitude_function.csv"),
+    ),
+    (
+        "dcs_fit/g2.csv",
+        include_str!("../../../validation/data/dcs_fit/g2.csv"),
+    ),
+];
 
 /// The text of the entry of `table` called `name`.
 pub fn find(table: &[(&str, &'static str)], name: &str) -> Option<&'static str> {

@@ -8,6 +8,7 @@ pub mod demo;
 pub mod example;
 pub mod field_sequence;
 pub mod fields;
+pub mod fit;
 pub mod fit_phase;
 pub mod g1;
 pub mod intensity;

@@ -348,14 +348,33 @@ fn parameter(
     })
 }
 
-/// Reads and checks a measurement file (`fit.data`) of `quantity` for a scene of `pairs` pairs.
+/// Reads and checks a measurement file (`fit.data`; `embedded:NAME` names one embedded in the
+/// binary, [`crate::examples::data`]) of `quantity` for a scene of `pairs` pairs.
 pub fn read_measurement(
     files: Files,
     path: &Path,
     quantity: Quantity,
     pairs: usize,
 ) -> Result<Measurement, SceneError> {
-    let (text, shown) = files.read_text("fit.data", path, MAX_TABLE_BYTES)?;
+    let embedded = path
+        .to_str()
+        .and_then(|f| f.strip_prefix(crate::build::phase::EMBEDDED));
+    let (text, shown) = match embedded {
+        Some(name) => {
+            let text = crate::examples::data(name).ok_or_else(|| {
+                invalid(
+                    "fit.data",
+                    format!(
+                        "no embedded table called {:?}; the embedded tables are: {}",
+                        excerpt(name),
+                        crate::examples::data_names().join(", ")
+                    ),
+                )
+            })?;
+            (text.to_string(), path.display().to_string())
+        }
+        None => files.read_text("fit.data", path, MAX_TABLE_BYTES)?,
+    };
     parse_measurement(&text, &shown, quantity, pairs)
 }
 
