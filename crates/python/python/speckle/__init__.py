@@ -55,6 +55,7 @@ __all__ = [
     "EXAMPLES",
     "CovarianceResult",
     "FieldSequenceResult",
+    "FitResult",
     "FieldsResult",
     "G1Result",
     "IntensityResult",
@@ -71,6 +72,7 @@ __all__ = [
     "covariance",
     "field_sequence",
     "fields",
+    "fit",
     "g1",
     "intensity",
     "load",
@@ -412,6 +414,60 @@ class G1Result(Result):
 
 
 @dataclass(frozen=True)
+class FitResult(Result):
+    """A fit of the scene's ``[fit]`` parameters to a measurement (``speckle fit``,
+    docs/fitting.md): one render keeps its path records, replayed at other parameters. Arrays
+    of parameters are ``(P,)`` in ``[fit]`` order; of the measurement ``(N,)``."""
+
+    quantity: str
+    """``"g2"``, ``"g1"`` or ``"intensity"``."""
+    names: list
+    """The fitted fields (``motion.diffusion``, ``beta``, ...)."""
+    estimates: np.ndarray
+    """The estimates."""
+    stderr: np.ndarray
+    """Their standard errors: the measurement's and the Monte Carlo's parts combined."""
+    stderr_measurement: np.ndarray
+    """The measurement's part (``(J^T J)^-1``)."""
+    stderr_monte_carlo: np.ndarray
+    """The Monte Carlo's part (jackknife over groups of paths)."""
+    intervals: np.ndarray
+    """``(P, 2)``: the intervals at ``level``."""
+    level: float
+    """The confidence level."""
+    x: np.ndarray
+    """The measured abscissae (lags, or pair indices)."""
+    y: np.ndarray
+    """The measured values."""
+    sigma: np.ndarray
+    """The standard errors the residuals are divided by (1 where the data give none)."""
+    model: np.ndarray
+    """The model at the estimate at each measured point."""
+    model_stderr: np.ndarray
+    """Its Monte Carlo standard error."""
+    residuals: np.ndarray
+    """``(y - model) / sigma``."""
+    chi2: float
+    """``sum residuals^2``."""
+    chi2_with_model_error: float
+    """The same with the model's Monte Carlo variance added to ``sigma^2``."""
+    dof: int
+    """Degrees of freedom ``N - P``."""
+    effective_fraction: float
+    """The smallest effective fraction of a re-weighting of the coefficients (1 without)."""
+    curve_x: np.ndarray
+    """A fine grid of abscissae (for plots)."""
+    curve: np.ndarray
+    """The model at the estimate on it."""
+    curve_stderr: np.ndarray
+    """Its Monte Carlo standard error."""
+    paths: int
+    """Number of paths rendered."""
+    records: int
+    """Number of contributions recorded."""
+
+
+@dataclass(frozen=True)
 class MapResult(Result):
     """The spatio-temporal map of moving scatterers (``speckle map``,
     :func:`spatiotemporal_map`; Bar et al. 2023, Eqs.
@@ -489,6 +545,7 @@ class FieldSequenceResult(Result):
 _RESULTS = {
     "field_sequence": FieldSequenceResult,
     "g1": G1Result,
+    "fit": FitResult,
     "map": MapResult,
     "tracking": TrackingResult,
     "covariance": CovarianceResult,
@@ -653,6 +710,44 @@ def g1(
     """
     s = _load_with(scene, dict(paths=paths, seed=seed))
     return _result(s, _speckle.g1(s._p, threads, force))  # type: ignore[return-value]
+
+
+def fit(
+    scene: SceneLike,
+    data: Union[None, PathLike, Mapping[str, Any]] = None,
+    *,
+    paths: Optional[int] = None,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> FitResult:
+    """Fits the scene's ``[fit]`` parameters to a measurement (``speckle fit``,
+    docs/fitting.md): ``data`` is a CSV file (rows ``lag, value[, stderr]`` for ``g1``/``g2``,
+    ``pair, reading[, stderr]`` for intensities), a mapping of arrays ``x``, ``y`` and
+    optionally ``stderr`` (checked as the rows of a file), or ``None`` for the scene's
+    ``fit.data``. A malformed measurement raises :class:`SceneError` (a ``ValueError``) naming
+    ``fit.data`` with the line and column, the message of the command line.
+
+    >>> r = speckle.fit(speckle.Scene.example("dcs_fit"))   # doctest: +SKIP
+    >>> r.estimates, r.intervals                           # D and beta with 95% intervals
+    """
+    s = _load_with(scene, dict(paths=paths, seed=seed))
+    path: Optional[str] = None
+    text: Optional[str] = None
+    if isinstance(data, Mapping):
+        unknown = set(data) - {"x", "y", "stderr"}
+        if unknown or "x" not in data or "y" not in data:
+            raise SceneError("fit.data: a mapping of arrays x, y and optionally stderr "
+                             f"(got keys {sorted(data)})")
+        columns = [np.asarray(data[k], dtype=float).ravel() for k in ("x", "y", "stderr") if k in data]
+        if len({len(c) for c in columns}) != 1:
+            raise SceneError("fit.data: x, y and stderr must have the same length "
+                             f"(got {[len(c) for c in columns]})")
+        text = "".join(",".join(repr(float(v)) for v in row) + "\n" for row in zip(*columns))
+    elif data is not None:
+        path = os.fspath(data)
+    d = _speckle.fit(s._p, path, text, threads, force)
+    return _result(s, d)  # type: ignore[return-value]
 
 
 def field_sequence(

@@ -106,6 +106,13 @@ def mean(problem: Problem) -> Dict[str, Any]: ...
 def g1(
     problem: Problem, threads: Optional[int] = None, force: bool = False
 ) -> Dict[str, Any]: ...
+def fit(
+    problem: Problem,
+    data_path: Optional[str] = None,
+    data_text: Optional[str] = None,
+    threads: Optional[int] = None,
+    force: bool = False,
+) -> Dict[str, Any]: ...
 def map(
     problem: Problem, threads: Optional[int] = None, force: bool = False
 ) -> Dict[str, Any]: ...

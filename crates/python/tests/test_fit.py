@@ -1,0 +1,108 @@
+"""`speckle.fit` (issue 26): a fit of the project's own g1 curve returns the estimates,
+intervals and residuals as numpy arrays, the same as the command line's files bit for bit; a
+measurement as arrays is checked as the rows of a file; malformed measurements raise
+`SceneError` (a `ValueError`) naming `fit.data`, the line and the column, with the message the
+command line prints (and exits 2 with). Run time: a few seconds."""
+
+import subprocess
+
+import numpy as np
+import pytest
+
+import speckle
+
+SCENE = """
+name = "f"
+wavelength = 500e-7
+[medium]
+size = [1.0, 1.0, 1.0]
+center = [0.0, 0.0, 0.5]
+sigma_s = 20.0
+sigma_a = 0.1
+[phase]
+type = "hg"
+g = 0.8
+[[sources]]
+type = "point"
+position = [-0.1, 0.0, 0.0]
+[[sensors]]
+type = "detector"
+position = [0.1, 0.0, 0.0]
+radius = 0.05
+numerical_aperture = 0.5
+[motion]
+diffusion = {d}
+lags = [0.0, 1e-7, 2e-7, 5e-7, 1e-6, 2e-6, 5e-6, 1e-5, 2e-5, 5e-5]
+[render]
+paths = {paths}
+seed = {seed}
+[fit]
+quantity = "g1"
+[[fit.parameters]]
+field = "motion.diffusion"
+range = [1e-9, 1e-5]
+"""
+
+
+def measurement():
+    """|g1| of a render at D = 2e-7 with standard errors of 0.01."""
+    r = speckle.g1(SCENE.format(d="2e-7", paths=100_000, seed=9))
+    g1 = np.abs(r.g1[0])
+    return {"x": r.lags[1:], "y": g1[1:], "stderr": np.full(len(g1) - 1, 0.01)}
+
+
+def test_a_fit_returns_numpy_arrays_and_matches_the_command_line(tmp_path, speckle_bin):
+    data = measurement()
+    scene = SCENE.format(d="1e-6", paths=50_000, seed=1)
+    r = speckle.fit(scene, data)
+    assert r.names == ["motion.diffusion"]
+    assert isinstance(r.estimates, np.ndarray) and r.intervals.shape == (1, 2)
+    assert r.residuals.shape == (len(data["x"]),)
+    assert abs(r.estimates[0] - 2e-7) < 4.5 * r.stderr[0]
+    assert r.intervals[0, 0] < r.estimates[0] < r.intervals[0, 1]
+    # The same measurement as a file, through the command line: the same numbers.
+    csv = tmp_path / "m.csv"
+    csv.write_text("".join(f"{float(x)!r},{float(y)!r},{float(s)!r}\n" for x, y, s in zip(data["x"], data["y"], data["stderr"])))
+    (tmp_path / "f.toml").write_text(scene)
+    subprocess.run([str(speckle_bin), "fit", "f.toml", "--data", "m.csv", "--out", "o", "-q"],
+                   cwd=tmp_path, check=True, capture_output=True)
+    for key, name in [("estimates", "fit_estimates"), ("stderr", "fit_stderr"), ("residuals", "fit_residuals")]:
+        assert np.array_equal(getattr(r, key), np.load(tmp_path / "o" / f"f.{name}.npy")), key
+    # From a file path too.
+    assert np.array_equal(speckle.fit(scene, csv).estimates, r.estimates)
+
+
+@pytest.mark.parametrize(
+    "rows, said",
+    [
+        ("1e-6,1.5\n2e-6,abc\n", "line 2, column 2"),
+        ("1e-6,0.9\n1e-7,0.8\n1e-5,0.5\n", "line 2, column 1: lags must increase"),
+        ("1e-6,0.9\n2e-6,nan\n", "line 2, column 2"),
+        ("1e-6,0.9,0.1\n2e-6,0.8\n", "line 2, column 1"),
+        ("1e-6,0.9,1\n2e-6,0.8,0\n", "line 2, column 3"),
+    ],
+)
+def test_malformed_measurements_raise_value_errors_like_the_command_line(tmp_path, speckle_bin, rows, said):
+    scene = SCENE.format(d="1e-6", paths=1000, seed=1)
+    csv = tmp_path / "m.csv"
+    csv.write_text(rows)
+    with pytest.raises(ValueError) as e:
+        speckle.fit(scene, csv)
+    assert e.value.field == "fit.data" and said in str(e.value)
+    (tmp_path / "f.toml").write_text(scene)
+    p = subprocess.run([str(speckle_bin), "fit", "f.toml", "--data", str(csv), "--out", "o", "-q"],
+                       cwd=tmp_path, capture_output=True, text=True)
+    assert p.returncode == 2
+    assert str(e.value) in p.stderr
+
+
+def test_measurements_as_arrays_are_checked_as_rows():
+    scene = SCENE.format(d="1e-6", paths=1000, seed=1)
+    with pytest.raises(ValueError, match="line 2, column 1: lags must increase"):
+        speckle.fit(scene, {"x": [1e-6, 1e-7], "y": [0.9, 0.8]})
+    with pytest.raises(ValueError, match="line 1, column 3"):
+        speckle.fit(scene, {"x": [1e-6, 2e-6], "y": [0.9, 0.8], "stderr": [-1.0, 1.0]})
+    with pytest.raises(ValueError, match="same length"):
+        speckle.fit(scene, {"x": [1e-6, 2e-6], "y": [0.9]})
+    with pytest.raises(ValueError, match="fit.data"):
+        speckle.fit(scene, {"lags": [1e-6]})
