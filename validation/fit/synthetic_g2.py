@@ -36,7 +36,8 @@ def main():
     a.add_argument("--speckle", default="target/release/speckle")
     a.add_argument("--scene", required=True)
     a.add_argument("--diffusion", type=float, required=True, help="true D (the [motion] table's)")
-    a.add_argument("--material", type=int, help="fit a [[motion.materials]] entry's D instead")
+    a.add_argument("--material", type=int, nargs="+",
+                   help="set these [[motion.materials]] entries' D instead (several: one value shared)")
     a.add_argument("--pair", type=int, default=0)
     a.add_argument("--beta", type=float, default=0.5)
     a.add_argument("--rate", type=float, default=1e5, help="detected counts per second")
@@ -54,7 +55,8 @@ def main():
         text = re.sub(r"(?m)^diffusion = .*$", f"diffusion = {o.diffusion:e}", text, count=1)
     else:
         blocks = text.split("[[motion.materials]]")
-        blocks[o.material + 1] = re.sub(r"(?m)^diffusion = .*$", f"diffusion = {o.diffusion:e}", blocks[o.material + 1], count=1)
+        for m in o.material:
+            blocks[m + 1] = re.sub(r"(?m)^diffusion = .*$", f"diffusion = {o.diffusion:e}", blocks[m + 1], count=1)
         text = "[[motion.materials]]".join(blocks)
     text = re.sub(r"(?ms)^\[fit\].*", "", text)
     with tempfile.TemporaryDirectory() as d:
@@ -72,7 +74,7 @@ def main():
     out = pathlib.Path(o.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w") as f:
-        f.write(f"# synthetic g2: {o.scene} at D = {o.diffusion:g}" + (f" (material {o.material})" if o.material is not None else "")
+        f.write(f"# synthetic g2: {o.scene} at D = {o.diffusion:g}" + (f" (materials {o.material})" if o.material is not None else "")
                 + f", beta = {o.beta}, {o.paths} paths (seed {o.seed}); correlator noise: {o.rate:g} counts/s, "
                 f"{o.bin:g} s bins, {o.averaging:g} s averaging (noise seed {o.noise_seed}); validation/fit/synthetic_g2.py\n")
         f.write("lag,g2,stderr\n")

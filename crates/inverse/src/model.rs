@@ -74,11 +74,16 @@ impl<'a> Model<'a> {
                 derivatives.push(d);
                 derivatives.len() - 1
             };
-            uses.push(match p.field {
-                FitField::Diffusion { material: None } => (0..records.materials)
+            uses.push(match &p.field {
+                FitField::Diffusion { materials: None } => (0..records.materials)
                     .map(|m| add(Derivative::Diffusion(m)))
                     .collect(),
-                FitField::Diffusion { material: Some(m) } => vec![add(Derivative::Diffusion(m))],
+                FitField::Diffusion {
+                    materials: Some(list),
+                } => list
+                    .iter()
+                    .map(|&m| add(Derivative::Diffusion(m)))
+                    .collect(),
                 FitField::SigmaS => vec![add(Derivative::SigmaS)],
                 FitField::SigmaA => vec![add(Derivative::SigmaA)],
                 FitField::Beta | FitField::Scale => vec![],
@@ -107,11 +112,13 @@ impl<'a> Model<'a> {
     pub fn parameters_at(&self, theta: &[f64]) -> Parameters {
         let mut p = self.records.rendered.clone();
         for (f, &v) in self.parameters.iter().zip(theta) {
-            match f.field {
-                FitField::Diffusion { material: None } => {
+            match &f.field {
+                FitField::Diffusion { materials: None } => {
                     p.motions.iter_mut().for_each(|m| m.diffusion = v);
                 }
-                FitField::Diffusion { material: Some(m) } => p.motions[m].diffusion = v,
+                FitField::Diffusion {
+                    materials: Some(list),
+                } => list.iter().for_each(|&m| p.motions[m].diffusion = v),
                 FitField::SigmaS => {
                     let (_, a) = p.coefficients.expect("checked: a homogeneous medium");
                     p.coefficients = Some((v, a));

@@ -37,12 +37,13 @@ impl Quantity {
 }
 
 /// A parameter a fit can change.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum FitField {
-    /// The diffusion coefficient of one material (every material with a uniform motion).
+    /// The diffusion coefficient of one material, or one value shared by several (tied), or of
+    /// every material with a uniform motion.
     Diffusion {
-        /// The material (`None`: the one motion of every material).
-        material: Option<usize>,
+        /// The materials, increasing (`None`: the one motion of every material).
+        materials: Option<Vec<usize>>,
     },
     /// The scattering coefficient of a homogeneous medium.
     SigmaS,
@@ -173,6 +174,23 @@ pub fn build(
                 format!("{:?} is fitted twice", excerpt(&p.field)),
             ));
         }
+        if let FitField::Diffusion {
+            materials: Some(mine),
+        } = &parameter.field
+        {
+            let other = parameters.iter().find_map(|q| match &q.field {
+                FitField::Diffusion {
+                    materials: Some(theirs),
+                } => mine.iter().find(|m| theirs.contains(m)),
+                _ => None,
+            });
+            if let Some(m) = other {
+                return Err(invalid(
+                    format!("{at}.field"),
+                    format!("material {m}'s diffusion is fitted twice"),
+                ));
+            }
+        }
         parameters.push(parameter);
     }
     let groups = spec.groups.unwrap_or(32);
@@ -229,7 +247,7 @@ fn parameter(
                 .filter(|m| m.materials.is_none())
                 .ok_or_else(|| field_err("needs `[motion]` with one `diffusion` for the whole medium (with `[[motion.materials]]`, fit `motion.materials[i].diffusion`)".into()))?;
             (
-                FitField::Diffusion { material: None },
+                FitField::Diffusion { materials: None },
                 Some(m.diffusion.unwrap_or(0.0)),
                 0.0,
             )
@@ -273,29 +291,52 @@ fn parameter(
             (FitField::Scale, None, f64::MIN_POSITIVE)
         }
         _ => {
-            let material = name
+            let Some(list) = name
                 .strip_prefix("motion.materials[")
                 .and_then(|r| r.strip_suffix("].diffusion"))
-                .and_then(|i| i.parse::<usize>().ok());
-            let Some(i) = material else {
+            else {
                 return Err(field_err(format!(
                     "{:?} is not a field a fit can change (motion.diffusion, \
-                     motion.materials[i].diffusion, medium.sigma_s, medium.sigma_a, beta, scale)",
+                     motion.materials[i].diffusion, motion.materials[i,j,..].diffusion (one \
+                     value shared), medium.sigma_s, medium.sigma_a, beta, scale)",
                     excerpt(name)
                 )));
             };
-            let list = motion.and_then(|m| m.materials.as_ref()).ok_or_else(|| {
+            let mut indices = vec![];
+            for i in list.split(',') {
+                let i = i.trim().parse::<usize>().map_err(|_| {
+                    field_err(format!(
+                        "{:?}: the materials are indices separated by commas, as in \
+                         motion.materials[3,4].diffusion",
+                        excerpt(name)
+                    ))
+                })?;
+                if indices.contains(&i) {
+                    return Err(field_err(format!("material {i} is named twice")));
+                }
+                indices.push(i);
+            }
+            indices.sort_unstable();
+            let motions = motion.and_then(|m| m.materials.as_ref()).ok_or_else(|| {
                 field_err("needs `[[motion.materials]]` (one motion per material)".into())
             })?;
-            let m = list.get(i).ok_or_else(|| {
-                field_err(format!(
-                    "material {i} does not exist ({} material motions)",
-                    list.len()
-                ))
-            })?;
+            let mut values = vec![];
+            for &i in &indices {
+                let m = motions.get(i).ok_or_else(|| {
+                    field_err(format!(
+                        "material {i} does not exist ({} material motions)",
+                        motions.len()
+                    ))
+                })?;
+                values.push(m.diffusion);
+            }
+            // Tied materials start from their common value, or the range's middle.
+            let value = values.iter().all(|&v| v == values[0]).then_some(values[0]);
             (
-                FitField::Diffusion { material: Some(i) },
-                Some(m.diffusion),
+                FitField::Diffusion {
+                    materials: Some(indices),
+                },
+                value,
                 0.0,
             )
         }
@@ -326,7 +367,7 @@ fn parameter(
     } else {
         0.5 * (low + high)
     };
-    let start = match (field, value) {
+    let start = match (&field, value) {
         // The coefficients are the centre of the re-weighting: the render's.
         (FitField::SigmaS | FitField::SigmaA, Some(v)) if !(low..=high).contains(&v) => {
             return Err(invalid(
@@ -537,5 +578,113 @@ mod tests {
         assert!(e.to_string().contains("pair 0 is given twice"), "{e}");
         let e = parse_measurement("5,1\n0,2\n", "m.csv", Quantity::Intensity, 3).unwrap_err();
         assert!(e.to_string().contains("line 1, column 1"), "{e}");
+    }
+
+    /// A two-layer scene (three materials' motions) with the given `[[fit.parameters]]`.
+    fn layered(parameters: &str) -> Result<crate::Problem, String> {
+        let text = format!(
+            r#"
+wavelength = 785e-7
+[medium]
+size = [4.0, 4.0, 2.0]
+center = [0.0, 0.0, 1.0]
+layers = [0.3, 0.3, 1.4]
+[[medium.materials]]
+sigma_s = 10.0
+phase = {{ type = "hg", g = 0.5 }}
+[[medium.materials]]
+sigma_s = 12.0
+phase = {{ type = "hg", g = 0.5 }}
+[[medium.materials]]
+sigma_s = 14.0
+phase = {{ type = "hg", g = 0.5 }}
+[[sources]]
+type = "point"
+position = [-0.3, 0.0, 0.0]
+[[sensors]]
+type = "detector"
+position = [0.3, 0.0, 0.0]
+radius = 0.1
+[[motion.materials]]
+diffusion = 1e-8
+[[motion.materials]]
+diffusion = 0.0
+[[motion.materials]]
+diffusion = 1e-8
+[motion]
+lags = [0.0, 1e-6]
+[fit]
+quantity = "g1"
+{parameters}
+"#
+        );
+        let o = crate::Overrides::default();
+        crate::load::load_str(&text, "t", std::path::Path::new("."), "t", &o)
+            .map_err(|e| e.to_string())
+    }
+
+    fn parameter(field: &str) -> String {
+        format!("[[fit.parameters]]\nfield = \"{field}\"\nrange = [1e-10, 1e-6]\n")
+    }
+
+    #[test]
+    fn materials_diffusion_can_be_tied() {
+        let p = layered(&parameter("motion.materials[2, 0].diffusion")).unwrap();
+        let f = &p.fit.unwrap().parameters[0];
+        assert_eq!(
+            f.field,
+            FitField::Diffusion {
+                materials: Some(vec![0, 2])
+            }
+        );
+        assert_eq!(f.start, 1e-8, "their common value");
+        // Values that differ: the middle of the range.
+        let p = layered(
+            "[[fit.parameters]]\nfield = \"motion.materials[0,1].diffusion\"\n\
+             range = [1e-10, 1e-4]",
+        )
+        .unwrap();
+        let start = p.fit.unwrap().parameters[0].start;
+        assert!((start / 1e-7 - 1.0).abs() < 1e-12, "{start}");
+        let p = layered(&format!(
+            "{}{}",
+            parameter("motion.materials[1].diffusion"),
+            parameter("motion.materials[0,2].diffusion")
+        ))
+        .unwrap();
+        assert_eq!(p.fit.unwrap().parameters.len(), 2);
+        for (parameters, said) in [
+            (
+                parameter("motion.materials[0,0].diffusion"),
+                "fit.parameters[0].field: material 0 is named twice",
+            ),
+            (
+                parameter("motion.materials[0,3].diffusion"),
+                "fit.parameters[0].field: material 3 does not exist",
+            ),
+            (
+                parameter("motion.materials[0,x].diffusion"),
+                "indices separated by commas",
+            ),
+            (
+                parameter("motion.materials[].diffusion"),
+                "indices separated by commas",
+            ),
+            (
+                format!(
+                    "{}{}",
+                    parameter("motion.materials[0,1].diffusion"),
+                    parameter("motion.materials[2,1].diffusion")
+                ),
+                "fit.parameters[1].field: material 1's diffusion is fitted twice",
+            ),
+            (
+                parameter("motion.diffusion"),
+                "fit.parameters[0].field: needs `[motion]` with one `diffusion`",
+            ),
+        ] {
+            let e = layered(&parameters).unwrap_err();
+            assert!(e.contains(said), "{parameters}: {e}");
+        }
     }
 }
