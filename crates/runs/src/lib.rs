@@ -23,6 +23,7 @@
 pub mod checksum;
 mod detectors;
 mod file;
+mod finite;
 mod identity;
 mod merge;
 mod read;
