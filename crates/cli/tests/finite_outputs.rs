@@ -197,3 +197,39 @@ fn study_slabs_name_their_field_and_print_short_numbers() {
         &["delta_max_um: ", "L = 1.0000e-300 um"],
     );
 }
+
+/// Item 7: a focused beam's focus is named `focus` (was `position`), and a far arc whose
+/// generated direction is lost names `angles_deg` (was `sensor.direction` with a NaN vector).
+#[test]
+fn endpoint_messages_name_the_field_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let beam_sensor = "[[sensors]]\ntype = \"gaussian_beam\"\nfocus = [0.0, -1e13, 2.0]\n\
+                       concentration = 16.0\n";
+    let arc = "[[sensors]]\ntype = \"far_arc\"\nangles_deg = [0.0, 1e308]\nn = 3\n";
+    let far = "[[sensors]]\ntype = \"far\"\ndirection = [0.0, 0.0, 1.0]\n";
+    for (name, text, says) in [
+        (
+            "source.toml",
+            BEAM.replace("focus = [0.0, 0.0, -2.0]", "focus = [1e13, 0.0, 0.0]"),
+            "source.toml: sources[0].focus: 1e13 is more than",
+        ),
+        (
+            "sensor.toml",
+            BEAM.replacen(far, beam_sensor, 1),
+            "sensor.toml: sensors[0].focus: 1e13 is more than",
+        ),
+        (
+            "arc.toml",
+            BEAM.replacen(far, arc, 1),
+            "arc.toml: sensors[0].angles_deg: ",
+        ),
+    ] {
+        write(d, name, &text);
+        let o = speckle(d, &["check", name]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {e}");
+        assert!(e.contains(says), "expected {says:?} in: {e}");
+        assert!(!e.contains("position") && !e.contains("NaN"), "{e}");
+    }
+}

@@ -122,9 +122,19 @@ pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
 }
 
 /// A direction that a generator (tilts, far grids, far arcs) computed from the angle in `field`:
-/// refused, naming that field, when a component is not zero but below [`MIN_COMPONENT`] (an
-/// angle such as 1e-300 degrees).
+/// refused, naming that field, when it is not a finite unit vector (an angle such as 1e300
+/// degrees) or a component is not zero but below [`MIN_COMPONENT`] (an angle such as 1e-300
+/// degrees).
 pub fn generated_direction(field: &str, angle_deg: f64, u: DVec3) -> Result<DVec3, SceneError> {
+    if !u.is_finite() || u == DVec3::ZERO {
+        return Err(invalid(
+            field,
+            format!(
+                "{angle_deg:e} degrees gives no direction (its sine and cosine are lost at this \
+                 size); use an angle of ordinary size"
+            ),
+        ));
+    }
     match negligible_component(u) {
         None => Ok(u),
         Some(i) => Err(invalid(
