@@ -190,6 +190,12 @@ fn study_slabs_name_their_field_and_print_short_numbers() {
         "{e}"
     );
     assert!(!e.contains("0000000000"), "{e}");
+    let f = study(d, "fig7_bruteforce.toml", &[("concentration", "1e300")]);
+    refused(
+        d,
+        &["bruteforce", &f, "--out", "out", "-q"],
+        &["concentration: must be in [1, 1e4] (got 1e300)"],
+    );
     let f = study(d, "fig13_refocus.toml", &[("thickness_um", "1e-300")]);
     refused(
         d,

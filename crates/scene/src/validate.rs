@@ -77,6 +77,16 @@ pub fn name(name: &str) -> Result<(), SceneError> {
     }
 }
 
+/// `x` as a message shows it: as Rust writes it when of ordinary size, in exponent form when
+/// it is very large or very small (a length of 1e300 written out has 300 digits).
+pub fn number(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// A vector of finite components (`field[i]` names a bad one).
 pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     for (i, c) in v.iter().enumerate() {
