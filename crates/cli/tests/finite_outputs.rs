@@ -109,7 +109,9 @@ fn temporal_correlations_that_overflow_exit_with_2_naming_motion() {
 fn studies_whose_results_are_not_finite_exit_with_2_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cases: [(&str, &str, &[(&str, &str)], &str); 5] = [
+    // (command, study file, edits, --paths)
+    type Case<'a> = (&'a str, &'a str, &'a [(&'a str, &'a str)], &'a str);
+    let cases: [Case; 5] = [
         (
             "tilt-shift",
             "fig12_tilt_shift.toml",
