@@ -234,6 +234,12 @@ fn damaged_and_non_finite_numbers_are_refused() {
         set_f64(&mut p.payload, 16, f64::NEG_INFINITY)
     });
     refused(d, &[&f], "NaN or infinite value in the fields");
+    // Finite numbers too large for a render overflow in the merge's sums (found by the shard
+    // fuzzer): the merged estimate is refused.
+    let f = crafted(d, &wave, "big.shard", |p| {
+        set_f64(&mut p.payload, 16, 1e308)
+    });
+    refused(d, &[&f], "the merged wave is not finite");
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! Results checked finite before they are returned: a scene whose values lie where the
 //! estimators' formulas overflow (a diffusion coefficient of 1e40 with a focused beam) or
 //! underflow (lags of 5e-324) would otherwise give NaN or infinite arrays that a command writes
-//! with exit code 0. The error is an input error naming the scene's field that produced them.
+//! with exit code 0. The error is an input error naming the scene's field that produced them
+//! (or, for a merge, saying that the shards hold numbers no render gives).
 
 use crate::RunError;
 use crate::temporal::{Map, Temporal};
@@ -110,4 +111,40 @@ pub(crate) fn map(p: &Problem, m: &Map) -> Result<(), RunError> {
         )?;
     }
     Ok(())
+}
+
+/// Refuses a merge whose estimate is not finite: every shard's numbers are finite, but numbers
+/// too large to come from a render (1e308) overflow in the sums of the merge. The speckle means
+/// of a covariance may be NaN with the warning that explains them, as a single run's.
+pub(crate) fn merged(o: &crate::Outcome) -> Result<(), RunError> {
+    use crate::Outcome;
+    let all = |v: &[Complex64]| v.iter().all(finite);
+    let est = |e: &speckle_estimators::CovarianceEstimate| {
+        [&e.total, &e.single, &e.multiple]
+            .iter()
+            .all(|m| all(m.value.as_slice()) && all(m.std_error.as_slice()))
+    };
+    let ok = match o {
+        Outcome::Covariance(e, means) => est(e) && (means.warning.is_some() || all(&means.values)),
+        Outcome::Intensity(e) => est(e),
+        Outcome::Fields(f) => all(f.fields.as_slice()) && all(&f.mean),
+        Outcome::Wave(w) => {
+            all(w.fields.as_slice())
+                && all(&w.mean)
+                && all(&w.mean_std_error)
+                && all(w.covariance.value.as_slice())
+                && all(w.covariance.std_error.as_slice())
+                && w.mean_scatterers.is_finite()
+        }
+    };
+    if ok {
+        return Ok(());
+    }
+    Err(RunError::Shard(speckle_stats::ShardError::Mismatch(
+        format!(
+            "the merged {} is not finite (NaN or infinite): the shards hold numbers too large to \
+         come from a render (the files are damaged or not speckle's)",
+            o.kind().command()
+        ),
+    )))
 }

@@ -200,6 +200,7 @@ fn merge_sources(
             Outcome::Wave(WaveShard::merge(&parts)?)
         }
     };
+    crate::finite::merged(&outcome)?;
     Ok(Merged {
         problem,
         outcome,
