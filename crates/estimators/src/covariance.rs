@@ -358,14 +358,32 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
         };
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
-    let spec = MomentsSpec {
-        paths: options.paths,
-        j: scene.len(),
+    let spec = moments_spec(scene.len(), options.paths, layout);
+    run_moments(spec, shard, init, path, progress).ok_or(EstimatorError::Cancelled)
+}
+
+/// What a covariance render of `j` pairs and `paths` paths sums in `layout`: two parts
+/// (single and multiple scattering) and their total.
+fn moments_spec(j: usize, paths: u64, layout: Layout) -> MomentsSpec {
+    MomentsSpec {
+        paths,
+        j,
         layout,
         parts: 2,
         with_total: true,
+    }
+}
+
+/// The batch sums that every shard of [`render_covariance_shard`] (or, with `diagonal`, of
+/// [`render_intensity_shard`]) of a scene of `j` pairs holds: what a merge checks a shard
+/// file's header against before it reads the shard's numbers.
+pub fn shard_spec(j: usize, options: &CovarianceOptions, diagonal: bool) -> MomentsSpec {
+    let layout = if diagonal {
+        Layout::HermitianDiagonal
+    } else {
+        Layout::Hermitian
     };
-    run_moments(spec, shard, init, path, progress).ok_or(EstimatorError::Cancelled)
+    moments_spec(j, options.paths, layout)
 }
 
 /// The single-scattering covariance of Eq. 41,

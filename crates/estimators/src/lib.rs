@@ -57,7 +57,7 @@ pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_c
 pub use covariance::{
     CovarianceEstimate, CovarianceMerge, CovarianceOptions, CovarianceShard, render_covariance,
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,
-    render_intensity_with, render_single_scattering,
+    render_intensity_with, render_single_scattering, shard_spec,
 };
 pub use detector::{
     DetectorEstimate, DetectorTechniques, MAX_RECORD_BYTES, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY,

@@ -14,12 +14,17 @@
 //! other scenes, snippets inserted (paths to FIFOs, devices, files outside the folder, deep
 //! nesting, dates, long names, terminal escapes, byte-order marks), bytes flipped.
 //!
+//! Shard files are fuzzed too ([`shards`]): genuine shards of every sharded render, mutated
+//! and resealed, read and merged under the same oracle.
+//!
 //! `cargo test -p speckle-fuzz` runs the corpus and a few hundred variants (CI);
 //! `SPECKLE_FUZZ_SECONDS=1800 cargo test --release -p speckle-fuzz -- --ignored --nocapture`
 //! runs for half an hour and prints the count of inputs tried.
 
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
+
+pub mod shards;
 
 use speckle::estimators::{CovarianceOptions, Progress, render_intensity};
 use speckle::scene::cost::Command;
@@ -579,6 +584,27 @@ pub struct Tally {
     pub findings: Vec<(Finding, String)>,
 }
 
+/// Runs `f` in a thread watched for [`HANG_SECONDS`]: its finding, a panic, or a hang (whose
+/// thread cannot be stopped: the caller stops there).
+pub fn watched(f: impl FnOnce() -> Result<(), Finding> + Send + 'static) -> Result<(), Finding> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+        let _ = tx.send(r);
+    });
+    match rx.recv_timeout(Duration::from_secs(HANG_SECONDS)) {
+        Ok(Ok(r)) => r,
+        Ok(Err(panic)) => Err(Finding::Panic(
+            panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default(),
+        )),
+        Err(_) => Err(Finding::Hang),
+    }
+}
+
 /// Runs the corpus, then variants of it from `seed`, until `inputs` inputs or `seconds` have
 /// passed, each in a thread watched for [`HANG_SECONDS`]; stops at the first hang (its thread
 /// cannot be stopped).
@@ -601,26 +627,12 @@ pub fn run(seed: u64, inputs: u64, seconds: f64, base: &Path) -> Tally {
             v
         };
         n += 1;
-        let (tx, rx) = std::sync::mpsc::channel();
         let (input, folder) = (text.clone(), base.to_path_buf());
-        std::thread::spawn(move || {
-            let r = std::panic::catch_unwind(|| check(&input, &folder));
-            let _ = tx.send(r);
-        });
         tally.inputs += 1;
-        match rx.recv_timeout(Duration::from_secs(HANG_SECONDS)) {
-            Ok(Ok(Ok(()))) => {}
-            Ok(Ok(Err(f))) => tally.findings.push((f, text)),
-            Ok(Err(panic)) => {
-                let msg = panic
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default();
-                tally.findings.push((Finding::Panic(msg), text));
-            }
-            Err(_) => {
-                tally.findings.push((Finding::Hang, text));
+        if let Err(f) = watched(move || check(&input, &folder)) {
+            let hang = f == Finding::Hang;
+            tally.findings.push((f, text));
+            if hang {
                 break;
             }
         }

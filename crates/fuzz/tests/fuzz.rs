@@ -1,11 +1,14 @@
 //! The fuzz target over the scene parser and builders (see the crate documentation).
 //!
 //! - `corpus_and_variants`: every corpus scene and 300 variants (a few seconds; CI);
+//! - `shard_variants`: the genuine shards of every sharded render and 300 variants (CI);
 //! - `long_run` (ignored): `SPECKLE_FUZZ_SECONDS` seconds (default 1800) from the seed
-//!   `SPECKLE_FUZZ_SEED` (default 1); prints the count of inputs tried.
+//!   `SPECKLE_FUZZ_SEED` (default 1), two thirds on scenes and one third on shard files;
+//!   prints the count of inputs tried.
 //!
 //! A finding prints the input that caused it (add it to `corpus/` once fixed).
 
+use speckle_fuzz::shards::run_shards;
 use speckle_fuzz::{run, sandbox};
 
 fn report(t: &speckle_fuzz::Tally) {
@@ -31,6 +34,16 @@ fn corpus_and_variants() {
 }
 
 #[test]
+fn shard_variants() {
+    let root = tempfile::tempdir().unwrap();
+    let base = sandbox(root.path());
+    let t = run_shards(7, 300, 600.0, &base);
+    eprintln!("{} shard inputs", t.inputs);
+    assert_eq!(t.inputs, 300);
+    report(&t);
+}
+
+#[test]
 #[ignore]
 fn long_run() {
     let env = |k: &str, d: f64| {
@@ -45,11 +58,20 @@ fn long_run() {
     );
     let root = tempfile::tempdir().unwrap();
     let base = sandbox(root.path());
-    let t = run(seed as u64, u64::MAX, seconds, &base);
+    let t = run(seed as u64, u64::MAX, seconds * 2.0 / 3.0, &base);
     println!(
-        "fuzz: {} inputs in {seconds} s (seed {seed}), {} findings",
+        "fuzz: {} scene inputs in {:.0} s (seed {seed}), {} findings",
         t.inputs,
+        seconds * 2.0 / 3.0,
         t.findings.len()
     );
+    let s = run_shards(seed as u64, u64::MAX, seconds / 3.0, &base);
+    println!(
+        "fuzz: {} shard inputs in {:.0} s (seed {seed}), {} findings",
+        s.inputs,
+        seconds / 3.0,
+        s.findings.len()
+    );
+    report(&s);
     report(&t);
 }

@@ -284,6 +284,12 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
         let b = m.bounds();
         let mut near = vec![];
         let mut far = false;
+        // The points already taken, by their coordinates (hashed: a camera grid of a million
+        // points next to the medium was a linear scan per point). The key of a point is what
+        // `==` compares: -0 and +0 are one coordinate; a point with a NaN coordinate equals
+        // none, so it has no key and is always taken.
+        let mut seen = std::collections::HashSet::new();
+        let key = |p: DVec3| (!p.is_nan()).then(|| p.to_array().map(|c| (c + 0.0).to_bits()));
         for &p in points {
             let nearest = p.clamp(b.min(), b.max());
             let rate = match m.uniform_sigma_t() {
@@ -298,7 +304,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             };
             if (p - nearest).length() * rate > 1.0 {
                 far = true;
-            } else if !near.iter().any(|(q, _, _)| *q == p) {
+            } else if key(p).is_none_or(|k| seen.insert(k)) {
                 near.push((p, rate, p == nearest));
             }
         }

@@ -20,16 +20,20 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod checksum;
 mod detectors;
 mod file;
+mod finite;
 pub mod fit;
 mod identity;
 mod merge;
+mod read;
 pub mod temporal;
 
 pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
+pub use read::MAX_HEADER_BYTES;
 pub use temporal::{Temporal, temporal};
 
 use num_complex::Complex64;

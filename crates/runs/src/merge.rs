@@ -1,9 +1,10 @@
 //! Merging shards into the single run's estimate.
 
+use crate::read::Expected;
 use crate::{Header, Kind, Means, Outcome, RunError, ShardData, ShardFile, run_hash};
 use num_complex::Complex64;
 use speckle_estimators::{CovarianceMerge, EstimatorError, FieldShard};
-use speckle_scene::{Overrides, Problem, load_str};
+use speckle_scene::{Overrides, Problem, load_str_unquoted};
 use speckle_stats::{NoProgress, PairShare, ShardError};
 use speckle_wave::WaveShard;
 use std::ops::Range;
@@ -40,15 +41,24 @@ impl Source {
         }
     }
 
-    fn load(self) -> Result<ShardFile, RunError> {
-        self.load_reusing(&mut Vec::new())
+    /// The shard, checked against the run `expected` describes before its numbers are read.
+    fn load(self, expected: &Expected) -> Result<ShardFile, RunError> {
+        self.load_reusing(expected, &mut Vec::new())
     }
 
     /// [`Source::load`] into vectors of `pool` ([`ShardFile::read_reusing`]).
-    fn load_reusing(self, pool: &mut Vec<Vec<Complex64>>) -> Result<ShardFile, RunError> {
+    fn load_reusing(
+        self,
+        expected: &Expected,
+        pool: &mut Vec<Vec<Complex64>>,
+    ) -> Result<ShardFile, RunError> {
         match self {
-            Source::File(p) => ShardFile::read_reusing(&p, pool),
-            Source::Memory(s) => Ok(*s),
+            Source::File(p) => ShardFile::read_checked(&p, expected, pool),
+            Source::Memory(s) => {
+                let at = format!("<shard {}>", s.header.shard);
+                expected.check_data(&s, Path::new(&at))?;
+                Ok(*s)
+            }
         }
     }
 }
@@ -125,6 +135,7 @@ fn merge_sources(
              file it names changed since, or another speckle version); render the shards again"
         )));
     }
+    let expected = Expected::of(&problem, kind)?;
     let wall: f64 = shards.iter().map(|(h, _)| h.wall_time_s).sum();
     let n = shards.len();
     // Take the sources in unit order.
@@ -136,7 +147,7 @@ fn merge_sources(
             let mut merge: Option<CovarianceMerge> = None;
             let (mut shares, mut warning, mut pool) = (Vec::new(), None, Vec::new());
             for (_, s) in sources.by_ref() {
-                let m = match (kind, s.load_reusing(&mut pool)?.data) {
+                let m = match (kind, s.load_reusing(&expected, &mut pool)?.data) {
                     (Kind::Intensity, ShardData::Moments(m)) => m,
                     (Kind::Covariance, ShardData::Covariance(m, share, w)) => {
                         shares.push(share);
@@ -165,7 +176,7 @@ fn merge_sources(
         }
         Kind::Fields => {
             let parts = sources
-                .map(|(_, s)| match s.load()?.data {
+                .map(|(_, s)| match s.load(&expected)?.data {
                     ShardData::Fields(f) => Ok(f),
                     _ => Err(wrong()),
                 })
@@ -181,7 +192,7 @@ fn merge_sources(
         }
         Kind::Wave => {
             let parts = sources
-                .map(|(_, s)| match s.load()?.data {
+                .map(|(_, s)| match s.load(&expected)?.data {
                     ShardData::Wave(w) => Ok(w),
                     _ => Err(wrong()),
                 })
@@ -189,6 +200,7 @@ fn merge_sources(
             Outcome::Wave(WaveShard::merge(&parts)?)
         }
     };
+    crate::finite::merged(&outcome)?;
     Ok(Merged {
         problem,
         outcome,
@@ -198,9 +210,10 @@ fn merge_sources(
     })
 }
 
-/// The problem of a shard's header, with `overrides`.
+/// The problem of a shard's header, with `overrides`. Its input files are looked up in the
+/// folder the header names, which may be any folder: no message quotes their contents.
 fn rebuild(h: &Header, overrides: &Overrides) -> Result<Problem, RunError> {
-    Ok(load_str(
+    Ok(load_str_unquoted(
         &h.scene_toml,
         &h.origin,
         Path::new(&h.base),

@@ -86,7 +86,9 @@ pub fn guard(
 /// (an error naming `motion` when it has none) and derives `g1`, `g2` and `K(T)`.
 pub fn temporal(p: &Problem, progress: &dyn Progress) -> Result<Temporal, RunError> {
     let motion = motion(p)?;
-    render_temporal(p, motion, &crate::covariance_options(p), progress)
+    let t = render_temporal(p, motion, &crate::covariance_options(p), progress)?;
+    crate::finite::temporal(p, &t)?;
+    Ok(t)
 }
 
 /// [`temporal`] with the options `opts`.
@@ -267,6 +269,7 @@ pub fn temporal_renders(
             renders.iter().map(|t| t.paths).sum(),
         )
     };
+    crate::finite::temporal(p, &pooled)?;
     Ok(Renders { pooled, renders })
 }
 
@@ -322,14 +325,16 @@ pub fn map(p: &Problem, progress: &dyn Progress) -> Result<Map, RunError> {
         .map(|z| c[z].re)
         .filter(|c0| *c0 > 0.0)
         .map(|c0| c.iter().map(|v| v.norm() / c0).collect());
-    Ok(Map {
+    let m = Map {
         lags: motion.lags.clone(),
         pairs: k,
         correlation: c,
         correlation_stderr: se,
         normalised,
         paths: est.paths,
-    })
+    };
+    crate::finite::map(p, &m)?;
+    Ok(m)
 }
 
 /// The `[motion]` table of a field-sequence render, checked: present (an error naming `motion`),

@@ -42,7 +42,7 @@ pub mod tools;
 pub mod validate;
 
 pub use build::render::{OutputSettings, RenderSettings};
-pub use load::{LoadError, load_file, load_str};
+pub use load::{LoadError, load_file, load_str, load_str_unquoted};
 pub use problem::Problem;
 pub use schema::{Overrides, SceneFile};
 

@@ -344,11 +344,37 @@ pub fn load_str(
     default_name: &str,
     overrides: &Overrides,
 ) -> Result<Problem, LoadError> {
+    load_str_quoting(text, origin, base, default_name, overrides, true)
+}
+
+/// [`load_str`] for a scene that the user did not write: the scene recorded in a shard file,
+/// whose folder `base` comes from the shard's header. Its input files are read as usual, but no
+/// message quotes their contents (`safe::Access::quote_inputs`), which may be those of any
+/// file on the machine.
+pub fn load_str_unquoted(
+    text: &str,
+    origin: &str,
+    base: &Path,
+    default_name: &str,
+    overrides: &Overrides,
+) -> Result<Problem, LoadError> {
+    load_str_quoting(text, origin, base, default_name, overrides, false)
+}
+
+fn load_str_quoting(
+    text: &str,
+    origin: &str,
+    base: &Path,
+    default_name: &str,
+    overrides: &Overrides,
+    quote_inputs: bool,
+) -> Result<Problem, LoadError> {
     let mut file = parse_scene(text).map_err(|e| e.in_document(origin))?;
     overrides.apply(&mut file);
     let access = Access {
         inputs_outside: overrides.allow_outside,
         output_outside: overrides.allow_outside || overrides.out.is_some(),
+        quote_inputs,
     };
     Problem::build_with(file, origin, base, default_name, access)
         .map_err(|e| LoadError::from(e).in_document(origin))

@@ -76,7 +76,7 @@ fn check_extents(
     sensors: &[EndpointInfo],
     wavelength: f64,
 ) -> Result<(), SceneError> {
-    use crate::schema::SensorSpec;
+    use crate::schema::{SensorSpec, SourceSpec};
     let extent = MAX_WAVELENGTHS * wavelength;
     let far = |p: [f64; 3]| p.iter().any(|c| !c.is_finite() || c.abs() > extent);
     for (what, infos) in [("sources", sources), ("sensors", sensors)] {
@@ -103,6 +103,13 @@ fn check_extents(
                         "step_y"
                     }
                 }
+                // A focused beam's position is its focus.
+                ("sources", _)
+                    if matches!(file.sources.get(e), Some(SourceSpec::GaussianBeam { .. })) =>
+                {
+                    "focus"
+                }
+                ("sensors", Some(SensorSpec::GaussianBeam { .. })) => "focus",
                 _ => "position",
             };
             let v = p.iter().fold(0.0f64, |a, c| a.max(c.abs()));

@@ -42,6 +42,10 @@ pub struct Access {
     /// `output.dir` may be absolute or outside the current directory (set when the user gave
     /// the directory on the command line, or opted in).
     pub output_outside: bool,
+    /// Messages may quote a short excerpt of an input file's contents ([`excerpt`]). Not for
+    /// the scene recorded in a shard file ([`crate::load::load_str_unquoted`]): its folder
+    /// comes from the shard's header, so its input files may be any file on the machine.
+    pub quote_inputs: bool,
 }
 
 impl Access {
@@ -50,6 +54,7 @@ impl Access {
     pub const CONFINED: Self = Self {
         inputs_outside: false,
         output_outside: false,
+        quote_inputs: true,
     };
 
     /// Everything allowed (`--allow-outside`).
@@ -57,6 +62,7 @@ impl Access {
         Self {
             inputs_outside: true,
             output_outside: true,
+            quote_inputs: true,
         }
     }
 }
@@ -204,6 +210,35 @@ fn open_nonblocking(path: &Path) -> std::io::Result<std::fs::File> {
     o.open(path)
 }
 
+/// Opens the regular file `path` of at most `limit` bytes for reading, and returns it with its
+/// length; the error says why not (for a message that names the file). FIFOs, sockets, devices
+/// and directories are refused before they are opened (opening a FIFO or a tape could block or
+/// act) and again on the opened file (the path may have changed in between), and the file is
+/// opened without blocking.
+pub fn open_regular(path: &Path, limit: u64) -> Result<(std::fs::File, u64), String> {
+    let regular = |m: &std::fs::Metadata| -> Result<u64, String> {
+        if !m.is_file() {
+            let what = if m.is_dir() {
+                "a directory"
+            } else {
+                "not a regular file (a FIFO, a socket or a device)"
+            };
+            return Err(format!("it is {what}"));
+        }
+        if m.len() > limit {
+            return Err(format!(
+                "it has {} bytes, more than the limit of {limit}",
+                m.len()
+            ));
+        }
+        Ok(m.len())
+    };
+    regular(&std::fs::metadata(path).map_err(|e| e.to_string())?)?;
+    let file = open_nonblocking(path).map_err(|e| e.to_string())?;
+    let len = regular(&file.metadata().map_err(|e| e.to_string())?)?;
+    Ok((file, len))
+}
+
 /// Reads the regular file `path` (named by `field`, shown as `shown`) of at most `limit` bytes.
 /// Refuses FIFOs, devices, directories and larger files without reading them, and never blocks.
 pub fn read_regular(
@@ -213,28 +248,7 @@ pub fn read_regular(
     limit: u64,
 ) -> Result<Vec<u8>, SceneError> {
     let fail = |why: String| invalid(field, format!("cannot read {shown}: {why}"));
-    let regular = |m: &std::fs::Metadata| -> Result<(), SceneError> {
-        if !m.is_file() {
-            let what = if m.is_dir() {
-                "a directory"
-            } else {
-                "not a regular file (a FIFO, a socket or a device)"
-            };
-            return Err(fail(format!("it is {what}")));
-        }
-        if m.len() > limit {
-            return Err(fail(format!(
-                "it has {} bytes, more than the limit of {limit}",
-                m.len()
-            )));
-        }
-        Ok(())
-    };
-    // Checked before opening (opening a FIFO or a tape could block or act) and again on the
-    // opened file (the path may have changed in between).
-    regular(&std::fs::metadata(path).map_err(|e| fail(e.to_string()))?)?;
-    let file = open_nonblocking(path).map_err(|e| fail(e.to_string()))?;
-    regular(&file.metadata().map_err(|e| fail(e.to_string()))?)?;
+    let (file, _) = open_regular(path, limit).map_err(fail)?;
     let mut bytes = Vec::new();
     file.take(limit + 1)
         .read_to_end(&mut bytes)

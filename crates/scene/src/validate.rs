@@ -77,6 +77,16 @@ pub fn name(name: &str) -> Result<(), SceneError> {
     }
 }
 
+/// `x` as a message shows it: as Rust writes it when of ordinary size, in exponent form when
+/// it is very large or very small (a length of 1e300 written out has 300 digits).
+pub fn number(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// A vector of finite components (`field[i]` names a bad one).
 pub fn vec3(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
     for (i, c) in v.iter().enumerate() {
@@ -122,9 +132,19 @@ pub fn direction(field: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
 }
 
 /// A direction that a generator (tilts, far grids, far arcs) computed from the angle in `field`:
-/// refused, naming that field, when a component is not zero but below [`MIN_COMPONENT`] (an
-/// angle such as 1e-300 degrees).
+/// refused, naming that field, when it is not a finite unit vector (an angle such as 1e300
+/// degrees) or a component is not zero but below [`MIN_COMPONENT`] (an angle such as 1e-300
+/// degrees).
 pub fn generated_direction(field: &str, angle_deg: f64, u: DVec3) -> Result<DVec3, SceneError> {
+    if !u.is_finite() || u == DVec3::ZERO {
+        return Err(invalid(
+            field,
+            format!(
+                "{angle_deg:e} degrees gives no direction (its sine and cosine are lost at this \
+                 size); use an angle of ordinary size"
+            ),
+        ));
+    }
     match negligible_component(u) {
         None => Ok(u),
         Some(i) => Err(invalid(

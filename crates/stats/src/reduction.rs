@@ -30,6 +30,27 @@ impl MomentsSpec {
         Batches::about(self.paths, TARGET_BATCHES)
     }
 
+    /// The first field in which `other` differs from `self`, as `field: other's value, not
+    /// self's` (for messages about shards of different renders), or `None` when they agree.
+    pub fn difference(&self, other: &Self) -> Option<String> {
+        let layout = |l: Layout| format!("{l:?}").to_lowercase();
+        let fields = [
+            ("paths", other.paths.to_string(), self.paths.to_string()),
+            ("j", other.j.to_string(), self.j.to_string()),
+            ("layout", layout(other.layout), layout(self.layout)),
+            ("parts", other.parts.to_string(), self.parts.to_string()),
+            (
+                "with_total",
+                other.with_total.to_string(),
+                self.with_total.to_string(),
+            ),
+        ];
+        fields
+            .into_iter()
+            .find(|(_, a, b)| a != b)
+            .map(|(f, a, b)| format!("{f} = {a}, not {b}"))
+    }
+
     /// Entries a batch keeps per part in a shard: the upper triangle of a Hermitian sum (its
     /// lower triangle is never read), every entry of the other layouts.
     pub fn kept(&self) -> usize {
@@ -183,10 +204,10 @@ impl MomentsReduction {
     /// Adds the batches of a shard, which must start at [`Self::next`] (shards are merged in
     /// batch order) and be of the same run.
     pub fn add_partial(&mut self, p: &PartialMoments) -> Result<(), ShardError> {
-        if p.spec != self.spec {
+        if let Some(d) = self.spec.difference(&p.spec) {
             return Err(ShardError::Mismatch(format!(
-                "shard {} is of another render ({:?}, not {:?})",
-                p.shard, p.spec, self.spec
+                "shard {} is of another render (its batch sums have {d})",
+                p.shard
             )));
         }
         p.check()?;

@@ -33,7 +33,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let result = result.map_err(error::study)?;
     say!("{}", result.text(&s).trim_end());
     let n = &s.name;
-    let mut files = stage_study_arrays(&mut staged, n, result.arrays());
+    let mut files = stage_study_arrays(&mut staged, n, &s.origin, result.arrays())?;
     let svg_file = format!("{n}.bruteforce.svg");
     staged.add(svg_file.clone(), result.figure(&s).svg()?.into_bytes());
     files["svg"] = json!(svg_file);

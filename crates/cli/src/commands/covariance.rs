@@ -67,7 +67,8 @@ pub fn write(
 ) -> anyhow::Result<()> {
     let (j, mean) = (p.pairs(), &means.values[..]);
     if let Some(w) = &means.warning {
-        tell!("warning: {w}");
+        // A merge's warning comes from a shard file: shown escaped.
+        tell!("warning: {}", speckle::scene::safe::printable(w));
     }
     let n = &p.name;
     let mut files = json!({

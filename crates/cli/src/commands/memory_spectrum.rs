@@ -43,7 +43,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     say!("{}", result.text(&s).trim_end());
 
     let n = &s.name;
-    let mut files = stage_study_arrays(&mut staged, n, result.arrays(&s));
+    let mut files = stage_study_arrays(&mut staged, n, &s.origin, result.arrays(&s))?;
     files["layout"] = json!(LAYOUT);
     let svg_file = format!("{n}.memory.svg");
     staged.add(svg_file.clone(), plot::svg(&s, &result)?.into_bytes());

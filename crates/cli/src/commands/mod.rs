@@ -169,12 +169,15 @@ impl StudyOptions {
 }
 
 /// Stages each study array as `{name}.{key}.npy` and returns the sidecar's `files` object
-/// (file, shape and content per key).
+/// (file, shape and content per key); refuses arrays that are not finite, naming the study file
+/// `origin` (`speckle::studies::memory::check_finite`).
 pub fn stage_study_arrays(
     staged: &mut Staged,
     name: &str,
+    origin: &str,
     arrays: Vec<speckle::studies::memory::Array>,
-) -> Value {
+) -> anyhow::Result<Value> {
+    speckle::studies::memory::check_finite(origin, &arrays).map_err(error::study)?;
     let mut files = json!({});
     for array in arrays {
         let file = format!("{name}.{}.npy", array.key);
@@ -184,7 +187,7 @@ pub fn stage_study_arrays(
             speckle::scene::npy::encode_f8(&array.shape, &array.data),
         );
     }
-    files
+    Ok(files)
 }
 
 /// Sets the number of worker threads (all cores when `None`).

@@ -53,7 +53,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         progress.finish();
         let result = result.map_err(error::study)?;
         say!("{}", result.text(&s).trim_end());
-        files = stage_study_arrays(&mut staged, n, result.arrays(&s));
+        files = stage_study_arrays(&mut staged, n, &s.origin, result.arrays(&s))?;
         let svg_file = format!("{n}.refocus.svg");
         staged.add(svg_file.clone(), result.figure(&s).svg()?.into_bytes());
         files["svg"] = json!(svg_file);
@@ -79,7 +79,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             .map_err(error::study)?
             .expect("the study has an [images] section");
         say!("{}", result.text(plan).trim_end());
-        let mut image_files = stage_study_arrays(&mut staged, n, result.arrays(&s, plan));
+        let mut image_files =
+            stage_study_arrays(&mut staged, n, &s.origin, result.arrays(&s, plan))?;
         let png_file = format!("{n}.refocus_images.png");
         staged.add(png_file.clone(), mosaic(plan, &result)?);
         image_files["png"] = json!({

@@ -27,7 +27,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let result = result.map_err(error::study)?;
     say!("{}", result.text(&s).trim_end());
     let n = &s.name;
-    let mut files = stage_study_arrays(&mut staged, n, result.arrays(&s));
+    let mut files = stage_study_arrays(&mut staged, n, &s.origin, result.arrays(&s))?;
     let mut svgs = Vec::new();
     for c in 0..s.cases.len() {
         let file = format!("{n}.sampling_gain.{c}.svg");

@@ -60,7 +60,7 @@ pub fn build_phase(
                 }
                 None => files.read_text(&f("file"), file, MAX_TABLE_BYTES)?,
             };
-            read_table(&text, &shown, dim, &f("file"))
+            read_table(&text, &shown, dim, &f("file"), files.access.quote_inputs)
         }
         PhaseSpec::HgMixture { weights, g } => {
             if dim == Dimension::Two {
@@ -102,18 +102,28 @@ pub fn build_phase(
 }
 
 /// Reads a CSV amplitude table (the format of the module documentation) into a phase
-/// function; `shown` names the table in messages, `field` in the error.
+/// function; `shown` names the table in messages, `field` in the error. With `quote`, a message
+/// may quote a short excerpt of the table ([`excerpt`]); without, it gives the line only (a
+/// table that a shard file's scene names may be any file: see `crate::safe::Access`).
 pub fn read_table(
     text: &str,
     shown: &str,
     dim: Dimension,
     field: &str,
+    quote: bool,
 ) -> Result<Phase, SceneError> {
-    parse_table(text, shown, dim).map_err(|reason| invalid(field, reason))
+    parse_table(text, shown, dim, quote).map_err(|reason| invalid(field, reason))
 }
 
-/// The table's messages quote its contents only through [`excerpt`].
-fn parse_table(text: &str, shown: &str, dim: Dimension) -> Result<Phase, String> {
+/// The table's messages quote its contents only through [`excerpt`], and only with `quote`.
+fn parse_table(text: &str, shown: &str, dim: Dimension, quote: bool) -> Result<Phase, String> {
+    let excerpt = |t: &str| {
+        if quote {
+            excerpt(t)
+        } else {
+            "(contents not shown)".to_string()
+        }
+    };
     let mut lines = strip_bom(text)
         .lines()
         .enumerate()
@@ -253,9 +263,9 @@ mod tests {
             .collect();
         let text = write_table(rows);
         assert!(text.starts_with("theta_rad,re,im\n"));
-        let p = read_table(&text, "t.csv", Dimension::Three, "phase.file").unwrap();
+        let p = read_table(&text, "t.csv", Dimension::Three, "phase.file", true).unwrap();
         assert!(p.mean_cosine() > 0.0);
-        let e = read_table("x,y\n", "t.csv", Dimension::Three, "phase.file").unwrap_err();
+        let e = read_table("x,y\n", "t.csv", Dimension::Three, "phase.file", true).unwrap_err();
         assert!(
             e.to_string()
                 .starts_with("phase.file: t.csv line 1: the header"),

@@ -102,7 +102,7 @@ fn target_phase(t: &FitTarget) -> Result<(Phase, String), SceneError> {
             // A path from the command line: the user's choice, read as any input file.
             let shown = crate::safe::shown_path(path);
             let text = crate::safe::read_text("table", path, &shown, crate::safe::MAX_TABLE_BYTES)?;
-            let p = read_table(&text, &shown, Dimension::Three, "table")?;
+            let p = read_table(&text, &shown, Dimension::Three, "table", true)?;
             Ok((p, format!("table {shown}")))
         }
     }

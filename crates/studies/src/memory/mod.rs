@@ -59,7 +59,7 @@ pub use refocus_images::{
 };
 pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,
-    Wavelength, eq39,
+    Wavelength, check_finite, eq39,
 };
 pub use study::{
     Density, MAX_ANGLES, MAX_WAVELENGTHS, Study, StudyFile, StudyOutput, StudyOverrides,

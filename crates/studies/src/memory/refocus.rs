@@ -181,7 +181,10 @@ fn validate(
     if optimal_tilt(d_max, l).abs() > 1.0 {
         return Err(bad(
             "delta_max_um",
-            format!("gives a tilt 3 delta_max_um / (2 L) over 1 rad (got {d_max} um, L = {l} um)"),
+            format!(
+                "gives a tilt 3 delta_max_um / (2 L) over 1 rad (got {d_max:.4e} um, L = {l:.4e} \
+                 um)"
+            ),
         ));
     }
     if !(2..=MAX_REFOCUS_POINTS).contains(&file.n_delta) {

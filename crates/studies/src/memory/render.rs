@@ -129,13 +129,26 @@ pub(crate) fn tilt_scene(
     wavelength: f64,
     angles: &[f64],
 ) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
-    let medium_error = |e: speckle_medium::MediumError| EstimatorError::InvalidInput {
-        field: "medium".into(),
-        reason: e.to_string(),
-    };
-    let slab =
-        Aabb::centered(DVec3::ZERO, DVec3::new(width, width, thickness)).map_err(medium_error)?;
-    let medium = HomogeneousBox::new(slab, sigma_s, sigma_a).map_err(medium_error)?;
+    // The study files name the slab by its thickness (the width follows from it) and the
+    // coefficients by the mean free path; numbers are shown in exponent form (a length of
+    // 1e300 um written out has 300 digits).
+    let slab = Aabb::centered(DVec3::ZERO, DVec3::new(width, width, thickness)).map_err(|_| {
+        EstimatorError::InvalidInput {
+            field: "thickness_um".into(),
+            reason: format!(
+                "gives a slab of {width:.4e} x {width:.4e} x {thickness:.4e} um, whose extents \
+                 must be finite and > 0"
+            ),
+        }
+    })?;
+    let medium =
+        HomogeneousBox::new(slab, sigma_s, sigma_a).map_err(|_| EstimatorError::InvalidInput {
+            field: "mean_free_path_um".into(),
+            reason: format!(
+                "gives the coefficients sigma_s = {sigma_s:.4e}, sigma_a = {sigma_a:.4e} per um, \
+                 which must be finite, sigma_s > 0 and sigma_a >= 0"
+            ),
+        })?;
     let dirs: Vec<DVec3> = angles.iter().map(|&t| tilted(t)).collect();
     let sources = dirs
         .iter()
@@ -584,6 +597,30 @@ impl Wavelength {
             );
         }
     }
+}
+
+/// Refuses a study's output `arrays` if one holds a NaN or an infinite value: a study whose
+/// values lie where its formulas overflow or underflow (lengths of 1e300 or 1e-300 um, say)
+/// would write them. The error names the study file `origin` and the array, and is an input
+/// error (every value of a valid study within its checked ranges gives finite arrays).
+pub fn check_finite(origin: &str, arrays: &[Array]) -> Result<(), StudyError> {
+    let Some((a, at)) = arrays
+        .iter()
+        .find_map(|a| a.data.iter().position(|v| !v.is_finite()).map(|i| (a, i)))
+    else {
+        return Ok(());
+    };
+    Err(LoadError::from(bad(
+        "(results)",
+        format!(
+            "the study's values give NaN or infinite numbers ({} at index {at} of `{}`: {}); \
+             its lengths, angles or counts lie where the formulas overflow or underflow: bring \
+             them closer to the shipped studies' (scenes/)",
+            a.data[at], a.key, a.content
+        ),
+    ))
+    .in_document(origin)
+    .into())
 }
 
 /// One output array of a study: float64, C order.

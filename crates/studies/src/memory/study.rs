@@ -223,6 +223,7 @@ impl StudyOverrides {
         let access = speckle_scene::safe::Access {
             inputs_outside: false,
             output_outside: self.allow_outside || self.out.is_some(),
+            quote_inputs: true,
         };
         speckle_scene::safe::output_dir("output.dir", &output.dir, access)
             .map_err(LoadError::from)?;

@@ -30,7 +30,7 @@ use serde_json::{Value, json};
 use speckle_estimators::{EstimatorError, Progress, Scene};
 use speckle_medium::HomogeneousBox;
 use speckle_phase::Phase;
-use speckle_scene::validate::{invalid as bad, positive};
+use speckle_scene::validate::{invalid as bad, number, positive};
 use speckle_scene::{LoadError, SceneError, load};
 use std::f64::consts::{PI, TAU};
 use std::fmt::Write as _;
@@ -154,7 +154,10 @@ fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStud
     if lateral < 1.0 {
         return Err(bad(
             "lateral_factor",
-            format!("must be >= 1: the slab is at least as wide as it is thick (got {lateral})"),
+            format!(
+                "must be >= 1: the slab is at least as wide as it is thick (got {})",
+                number(lateral)
+            ),
         ));
     }
     let od = thickness / mfp;
@@ -177,7 +180,7 @@ fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStud
         if !(g.is_finite() && (0.0..1.0).contains(&g)) {
             return Err(bad(
                 format!("g[{i}]"),
-                format!("must be in [0, 1) (got {g})"),
+                format!("must be in [0, 1) (got {})", number(g)),
             ));
         }
     }

@@ -48,7 +48,7 @@ use speckle_endpoints::{GaussianBeam, Pair, Sensor, Source};
 use speckle_estimators::{CovarianceOptions, EstimatorError, Progress, Scene, render_covariance};
 use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 use speckle_phase::{Complex64, Phase, VmfMixture};
-use speckle_scene::validate::{invalid as bad, positive};
+use speckle_scene::validate::{invalid as bad, number, positive};
 use speckle_scene::{LoadError, SceneError, load};
 use speckle_stats::jackknife::jackknife;
 use speckle_stats::rng::derive_seed;
@@ -219,13 +219,16 @@ pub(super) fn validate(
     }
     let g = file.g;
     if !(g.is_finite() && (0.0..0.999).contains(&g)) {
-        return Err(bad("g", format!("must be in [0, 0.999) (got {g})")));
+        return Err(bad(
+            "g",
+            format!("must be in [0, 0.999) (got {})", number(g)),
+        ));
     }
     let na = file.numerical_aperture;
     if !(na.is_finite() && na > 0.0 && na <= 1.0) {
         return Err(bad(
             "numerical_aperture",
-            format!("must be in (0, 1] (got {na})"),
+            format!("must be in (0, 1] (got {})", number(na)),
         ));
     }
     let theta_max = positive("theta_max_mrad", file.theta_max_mrad)? * 1e-3;

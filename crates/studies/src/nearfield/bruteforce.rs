@@ -87,7 +87,7 @@ use speckle_estimators::{
 use speckle_medium::{Aabb, DVec3, HomogeneousBox, Medium};
 use speckle_paths::{BeamStrategy, TracerConfig};
 use speckle_phase::{Complex64, Dimension, Phase};
-use speckle_scene::validate::{invalid as bad, positive};
+use speckle_scene::validate::{invalid as bad, number, positive};
 use speckle_scene::{LoadError, SceneError, load};
 use speckle_stats::rng::derive_seed;
 use std::f64::consts::{FRAC_PI_2, TAU};
@@ -268,7 +268,7 @@ fn validate(
         if s > 1e4 {
             return Err(bad(
                 format!("size[{i}]"),
-                format!("must be at most 1e4 wavelengths (got {s})"),
+                format!("must be at most 1e4 wavelengths (got {})", number(s)),
             ));
         }
     }
@@ -286,7 +286,7 @@ fn validate(
     if !(1.0..=1e4).contains(&gamma) {
         return Err(bad(
             "concentration",
-            format!("must be in [1, 1e4] (got {gamma})"),
+            format!("must be in [1, 1e4] (got {})", number(gamma)),
         ));
     }
     let t = file.theta_max;
@@ -294,9 +294,10 @@ fn validate(
         return Err(bad(
             "theta_max",
             format!(
-                "must be in (0, pi / 2) (got {t}): the apertures about +y and -y may not \
+                "must be in (0, pi / 2) (got {}): the apertures about +y and -y may not \
                  overlap (the biased reference attenuates each plane wave along its \
-                 aperture's axis)"
+                 aperture's axis)",
+                number(t)
             ),
         ));
     }
@@ -320,7 +321,10 @@ fn validate(
     if !(fd.is_finite() && fd.abs() < 0.5 * depth) {
         return Err(bad(
             "focus_depth",
-            format!("must be inside the box, |focus_depth| < size[1] / 2 (got {fd})"),
+            format!(
+                "must be inside the box, |focus_depth| < size[1] / 2 (got {})",
+                number(fd)
+            ),
         ));
     }
     for (field, x) in [

@@ -38,7 +38,7 @@ use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 use speckle_paths::{BeamStrategy, TracerConfig};
 use speckle_phase::{Dimension, Phase, PhaseFunction, VmfMixture};
 use speckle_scene::schema::BeamsSpec;
-use speckle_scene::validate::{invalid as bad, positive};
+use speckle_scene::validate::{invalid as bad, number, positive};
 use speckle_scene::{LoadError, SceneError, load};
 use speckle_stats::rng::derive_seed;
 use std::fmt::Write as _;
@@ -400,14 +400,17 @@ fn case(i: usize, c: &CaseFile) -> Result<SamplingCase, SceneError> {
         if s > 1e4 {
             return Err(bad(
                 f(k),
-                format!("must be at most 1e4 wavelengths (got {s})"),
+                format!("must be at most 1e4 wavelengths (got {})", number(s)),
             ));
         }
     }
     if lat <= 2.0 {
         return Err(bad(
             f("size[0]"),
-            format!("must exceed 2: the foci lie at lateral 0 and 1 (got {lat})"),
+            format!(
+                "must exceed 2: the foci lie at lateral 0 and 1 (got {})",
+                number(lat)
+            ),
         ));
     }
     if depth.max(lat) / mfp > 50.0 {
@@ -423,7 +426,7 @@ fn case(i: usize, c: &CaseFile) -> Result<SamplingCase, SceneError> {
     if !(1.0..=1e4).contains(&gamma) {
         return Err(bad(
             f("concentration"),
-            format!("must be in [1, 1e4] (got {gamma})"),
+            format!("must be in [1, 1e4] (got {})", number(gamma)),
         ));
     }
     let phase = match (&c.amplitude, dimension) {
