@@ -29,7 +29,7 @@ fn problem() -> Problem {
 
 fn fit(c: &mut Criterion) {
     let p = problem();
-    let rec = records(&p, &NoProgress).unwrap();
+    let rec = records(&p, &[0], &NoProgress).unwrap();
     let lags = p.motion.as_ref().unwrap().lags.clone();
     let n = rec.records().len() as u64;
     let motion = |d| Parameters {
@@ -65,7 +65,7 @@ fn fit(c: &mut Criterion) {
     g.sample_size(10);
     g.throughput(Throughput::Elements(PATHS));
     g.bench_function("dcs_fit/records", |b| {
-        b.iter(|| black_box(records(&p, &NoProgress).unwrap()))
+        b.iter(|| black_box(records(&p, &[0], &NoProgress).unwrap()))
     });
     g.finish();
 

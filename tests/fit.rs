@@ -101,7 +101,7 @@ fn coverage(truth: &Problem, fitted: &[Problem], checked: &[(usize, f64)]) {
     let mut estimates = vec![vec![]; checked.len()];
     let mut reported = vec![0.0; checked.len()];
     for p in fitted {
-        let records = records(p, &speckle::estimators::NoProgress).unwrap();
+        let records = records(p, &[0], &speckle::estimators::NoProgress).unwrap();
         println!(
             "{} records of {} paths",
             records.records().len(),
@@ -283,7 +283,7 @@ fn absorption_and_scattering_are_recovered_from_intensities_at_four_separations(
         let p = fibres(20.0, 0.1, seed, 1_000_000);
         let mut settings = p.fit.clone().unwrap();
         settings.level = 0.99;
-        let records = records(&p, &speckle::estimators::NoProgress).unwrap();
+        let records = records(&p, &[0, 1, 2, 3], &speckle::estimators::NoProgress).unwrap();
         let f = fit_records(&records, &settings, &data).unwrap().outcome;
         println!(
             "seed {seed}: sigma_s {:.3} +- {:.3}, sigma_a {:.4} +- {:.4} (chi2 {:.2}, effective \

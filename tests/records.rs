@@ -91,6 +91,7 @@ fn replays_agree_with_fresh_renders_at_other_parameters() {
         &scene(SIGMA_S, SIGMA_A),
         Some((&model, &lags)),
         &opts(1_000_000, 1),
+        None,
         &NoProgress,
     )
     .unwrap()
@@ -167,6 +168,7 @@ fn replay_derivatives_match_finite_differences() {
         &scene(SIGMA_S, SIGMA_A),
         Some((&model, &lags)),
         &opts(50_000, 3),
+        None,
         &NoProgress,
     )
     .unwrap()
@@ -213,4 +215,63 @@ fn replay_derivatives_match_finite_differences() {
             );
         }
     }
+}
+
+#[test]
+fn records_of_chosen_pairs_are_those_of_every_pair_restricted() {
+    // Two sources, one fibre: pairs 0 and 1. Keeping pair 1 alone keeps exactly the records
+    // of pair 1 of a render that keeps both (same paths), and replays it bitwise the same;
+    // pair 0 reads as unrecorded; a pair that does not exist is refused naming `pairs`.
+    let one = scene(SIGMA_S, SIGMA_A);
+    let two = Scene::with_detectors(
+        one.medium().clone(),
+        one.phases().to_vec(),
+        WAVELENGTH,
+        vec![
+            Source::point(DVec3::new(-0.15, 0.0, 0.0)),
+            Source::point(DVec3::new(-0.25, 0.0, 0.0)),
+        ],
+        one.detectors().to_vec(),
+    )
+    .unwrap();
+    let model = MotionModel::uniform(Motion::brownian(D).unwrap());
+    let lags = lags();
+    let render = |pairs: Option<&[usize]>| {
+        render_detector_records(
+            &two,
+            Some((&model, &lags)),
+            &opts(20_000, 5),
+            pairs,
+            &NoProgress,
+        )
+        .map(|r| r.unwrap().1)
+    };
+    let all = render(None).unwrap();
+    let chosen = render(Some(&[1])).unwrap();
+    assert!(all.recorded(0) && all.recorded(1));
+    assert!(!chosen.recorded(0) && chosen.recorded(1));
+    let of_pair_1: Vec<_> = (0..all.records().len())
+        .filter(|&r| all.records()[r].pair == 1)
+        .collect();
+    assert!(!of_pair_1.is_empty());
+    assert_eq!(chosen.records().len(), of_pair_1.len());
+    for (i, &r) in of_pair_1.iter().enumerate() {
+        assert_eq!(chosen.records()[i], all.records()[r]);
+        assert_eq!(chosen.momentum(i, 0), all.momentum(r, 0));
+        assert_eq!(chosen.transfer(i, 0), all.transfer(r, 0));
+    }
+    let at = Parameters {
+        motions: vec![Motion::brownian(3.0 * D).unwrap()],
+        coefficients: Some((SIGMA_S * 1.1, SIGMA_A)),
+    };
+    let (a, b) = (
+        all.replay(&at, &lags, 4, &[]).curve(1),
+        chosen.replay(&at, &lags, 4, &[]).curve(1),
+    );
+    assert_eq!(a, b);
+    let e = render(Some(&[2])).unwrap_err().to_string();
+    assert!(
+        e.contains("pairs") && e.contains("pair 2 does not exist"),
+        "{e}"
+    );
 }

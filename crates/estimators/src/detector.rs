@@ -175,8 +175,10 @@ struct Sink<'a, M: Medium, P> {
     values: Vec<Complex64>,
     registered: bool,
     single: bool,
-    /// Whether the path's contributions are recorded, and the path's records so far.
+    /// Whether the path's contributions are recorded, the pairs whose contributions are, and
+    /// the path's records so far.
     record: bool,
+    keep: Vec<bool>,
     records: Vec<Record>,
     record_transfers: Vec<f64>,
 }
@@ -257,7 +259,7 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         }
         self.registered = true;
         self.single = single;
-        if self.record {
+        if self.record && self.keep[pair] {
             self.records.push(Record {
                 path: 0,
                 pair: pair as u32,
@@ -501,7 +503,7 @@ where
     M: Medium + Sync,
     P: PhaseFunction + Sync,
 {
-    Ok(render(scene, motion, opts, techniques, false, progress)?.map(|(e, _)| e))
+    Ok(render(scene, motion, opts, techniques, None, progress)?.map(|(e, _)| e))
 }
 
 /// The largest memory the records of [`render_detector_records`] may take (bytes): a render
@@ -509,27 +511,40 @@ where
 pub const MAX_RECORD_BYTES: usize = 1 << 31;
 
 /// [`render_detectors`] (default techniques, the same estimate bitwise) that also keeps the
-/// records of every contribution ([`PathRecords`]), for evaluations at other parameters
-/// without tracing again. The motion (`None`: at rest) gives the rendered parameters.
+/// records of every contribution to the pairs `pairs` (`None`: every pair) ([`PathRecords`]),
+/// for evaluations at other parameters without tracing again. The motion (`None`: at rest)
+/// gives the rendered parameters.
 ///
-/// Returns `Ok(None)` when cancelled; an error naming `render.paths` when the records would
-/// take more than [`MAX_RECORD_BYTES`].
+/// Returns `Ok(None)` when cancelled; an error naming `pairs` for a pair that does not exist,
+/// and one naming `render.paths` when the records would take more than [`MAX_RECORD_BYTES`]
+/// (the paths after the records pass it are not traced, so that this comes quickly).
 pub fn render_detector_records<M, P>(
     scene: &Scene<M, P>,
     motion: Option<(&MotionModel, &[f64])>,
     opts: &CovarianceOptions,
+    pairs: Option<&[usize]>,
     progress: &dyn Progress,
 ) -> Result<Option<(DetectorEstimate, PathRecords)>, EstimatorError>
 where
     M: Medium + Sync,
     P: PhaseFunction + Sync,
 {
+    let j = scene.len();
+    let mut keep = vec![pairs.is_none(); j];
+    for &p in pairs.unwrap_or_default() {
+        *keep
+            .get_mut(p)
+            .ok_or_else(|| EstimatorError::InvalidInput {
+                field: "pairs".into(),
+                reason: format!("pair {p} does not exist ({j} pairs)"),
+            })? = true;
+    }
     Ok(render(
         scene,
         motion,
         opts,
         DetectorTechniques::default(),
-        true,
+        Some(keep),
         progress,
     )?
     .map(|(e, r)| (e, r.expect("records were kept"))))
@@ -541,7 +556,7 @@ fn render<M, P>(
     motion: Option<(&MotionModel, &[f64])>,
     opts: &CovarianceOptions,
     techniques: DetectorTechniques,
-    record: bool,
+    keep: Option<Vec<bool>>,
     progress: &dyn Progress,
 ) -> Result<Option<(DetectorEstimate, Option<PathRecords>)>, EstimatorError>
 where
@@ -601,6 +616,8 @@ where
         })
         .collect();
     let nm = scene.medium().materials();
+    let record = keep.is_some();
+    let keep = keep.unwrap_or_default();
     let init = || Sink {
         scene,
         motion: model,
@@ -619,6 +636,7 @@ where
         registered: false,
         single: false,
         record,
+        keep: keep.clone(),
         records: vec![],
         record_transfers: vec![],
     };
@@ -630,6 +648,10 @@ where
     let seed = opts.seed;
     let nee_seed = derive_seed(seed, NEXT_EVENT_KEY);
     let path = |sink: &mut Sink<M, P>, n: u64, sums: &mut [BatchSum], _poll: &mut Poll| {
+        // Once the records are over their limit the render is refused: trace no more.
+        if record && record_bytes.load(std::sync::atomic::Ordering::Relaxed) > MAX_RECORD_BYTES {
+            return;
+        }
         let mut rng = PathRng::new(seed, n);
         sink.rng = PathRng::new(nee_seed, n);
         // Path n comes from source n mod S (each source a 1/S share of the paths).
@@ -724,7 +746,7 @@ where
             coefficients,
         };
         Some(PathRecords::new(
-            j, nm, k, opts.paths, rendered, records, transfers,
+            nm, k, opts.paths, rendered, keep, records, transfers,
         ))
     } else {
         None

@@ -81,6 +81,8 @@ pub struct PathRecords {
     pub paths: u64,
     /// The parameters of the render.
     pub rendered: Parameters,
+    /// Per pair, whether its contributions were recorded (a replay of another pair is 0).
+    recorded: Vec<bool>,
     records: Vec<Record>,
     /// Per record, per material: `|q|^2` summed, then the three components of `q` summed.
     transfers: Vec<f64>,
@@ -90,26 +92,33 @@ pub struct PathRecords {
 pub(crate) const PER_MATERIAL: usize = 4;
 
 impl PathRecords {
-    /// Records from their parts (sorted by path already: [`crate::render_detector_records`]).
+    /// Records from their parts (sorted by path already: [`crate::render_detector_records`]);
+    /// `recorded` has one entry per pair.
     pub(crate) fn new(
-        pairs: usize,
         materials: usize,
         wavenumber: f64,
         paths: u64,
         rendered: Parameters,
+        recorded: Vec<bool>,
         records: Vec<Record>,
         transfers: Vec<f64>,
     ) -> Self {
         debug_assert_eq!(transfers.len(), records.len() * materials * PER_MATERIAL);
         Self {
-            pairs,
+            pairs: recorded.len(),
             materials,
             wavenumber,
             paths,
             rendered,
+            recorded,
             records,
             transfers,
         }
+    }
+
+    /// Whether pair `j`'s contributions were recorded (those of other pairs replay to 0).
+    pub fn recorded(&self, j: usize) -> bool {
+        self.recorded.get(j).copied().unwrap_or(false)
     }
 
     /// The records, in path order.

@@ -95,7 +95,7 @@ impl<'a> Model<'a> {
                 records.paths
             )));
         }
-        Ok(Self {
+        let model = Self {
             records,
             quantity,
             pair,
@@ -105,7 +105,13 @@ impl<'a> Model<'a> {
             derivatives,
             uses,
             groups,
-        })
+        };
+        if let Some(p) = model.pairs().into_iter().find(|&p| !records.recorded(p)) {
+            return Err(FitError::Invalid(format!(
+                "fit: pair {p}'s contributions were not recorded by the render"
+            )));
+        }
+        Ok(model)
     }
 
     /// The replay parameters at `theta` (one value per fitted parameter).

@@ -51,12 +51,25 @@ pub fn measurement<'a>(
 }
 
 /// Renders the detectors of `p` keeping the records (at the scene's motion and coefficients).
-pub fn records(p: &Problem, progress: &dyn Progress) -> Result<PathRecords, RunError> {
+pub fn records(
+    p: &Problem,
+    pairs: &[usize],
+    progress: &dyn Progress,
+) -> Result<PathRecords, RunError> {
     let motion = p.motion.as_ref().map(|m| (&m.model, m.lags.as_slice()));
     let opts = crate::covariance_options(p);
-    let (_, records) = render_detector_records(&p.scene, motion, &opts, progress)?
+    let (_, records) = render_detector_records(&p.scene, motion, &opts, Some(pairs), progress)?
         .ok_or(RunError::Estimator(EstimatorError::Cancelled))?;
     Ok(records)
+}
+
+/// The pairs a fit of `settings` to `data` reads: the curve's pair, or the measured
+/// intensities' (the only ones whose contributions a fit's render records).
+pub fn measured_pairs(settings: &FitSettings, data: &Measurement) -> Vec<usize> {
+    match settings.quantity {
+        Quantity::Intensity => data.x.iter().map(|&x| x as usize).collect(),
+        Quantity::G1 | Quantity::G2 => vec![settings.pair],
+    }
 }
 
 /// Renders `p` with records and fits `[fit]` to `data` (or the scene's `fit.data`).
@@ -67,7 +80,7 @@ pub fn fit(
 ) -> Result<Fitted, RunError> {
     let s = settings(p)?;
     let m = measurement(p, data)?;
-    let records = records(p, progress)?;
+    let records = records(p, &measured_pairs(s, m), progress)?;
     fit_records(&records, s, m)
 }
 

@@ -54,7 +54,7 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     };
     let mut staged = plan(&p, estimate(&p, command), run)?;
     let (records, wall) = run.timed(&p, p.render.paths, "paths", error::runs, |pr| {
-        runs_fit::records(&p, pr)
+        runs_fit::records(&p, &runs_fit::measured_pairs(settings, measured), pr)
     })?;
     let started = Instant::now();
     let fitted = runs_fit::fit_records(&records, settings, measured).map_err(error::runs)?;
