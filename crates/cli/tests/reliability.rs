@@ -167,6 +167,214 @@ fn the_output_directory_and_names_are_checked_before_rendering() {
     }
 }
 
+/// Puts the files of `snap` back into `dir` as they were, and removes everything else there.
+fn restore(dir: &Path, snap: &[(String, Vec<u8>)]) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            std::fs::remove_dir_all(&p).unwrap();
+        } else {
+            std::fs::remove_file(&p).unwrap();
+        }
+    }
+    for (n, b) in snap {
+        std::fs::write(dir.join(n), b).unwrap();
+    }
+}
+
+/// Makes `to` a copy of the folder `from` (files and folders, recursively), replacing it.
+fn copy_tree(from: &Path, to: &Path) {
+    if to.exists() {
+        std::fs::remove_dir_all(to).unwrap();
+    }
+    std::fs::create_dir(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_tree(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// Whether `now` is the set `old` (byte for byte) or a complete new one: the same names, no
+/// temporary, and no file the same as before (the new render's scene changes every file).
+fn old_or_new(
+    now: &[(String, Vec<u8>)],
+    old: &[(String, Vec<u8>)],
+) -> Result<&'static str, String> {
+    if now == old {
+        return Ok("old");
+    }
+    if names(now) != names(old) {
+        return Err(format!("names {:?}", names(now)));
+    }
+    let same: Vec<&str> = now
+        .iter()
+        .zip(old)
+        .filter(|(a, b)| a.1 == b.1)
+        .map(|(a, _)| a.0.as_str())
+        .collect();
+    if same.is_empty() {
+        Ok("new")
+    } else {
+        Err(format!("a mix: {same:?} are the old files"))
+    }
+}
+
+#[test]
+fn a_commit_killed_at_any_step_leaves_the_old_or_the_new_set_once_recovered() {
+    // Issue 27, item 5: a kill timed to the removal of the staging folder left, after the
+    // next command's recovery, a mix (one file deleted, the others rolled back), or a folder
+    // that made every later write fail. Here the commit is killed (abort, as SIGKILL: no
+    // clean-up) after each of its steps in turn, and the next command into the folder (a
+    // render cancelled after its recovery) must leave the previous set or the new one,
+    // complete, and no temporary. At a few steps the recovery itself is killed at each of its
+    // own steps, then recovered by the command after it.
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    let o = speckle(dir.path(), &["covariance", tiny, "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let res = dir.path().join("res");
+    let old = snapshot(&res);
+    let run = |args: &[&str], abort: Option<usize>| {
+        let mut c = bin();
+        c.args(args).current_dir(dir.path());
+        if let Some(k) = abort {
+            c.env("SPECKLE_TEST_ABORT_AT_STEP", k.to_string());
+        }
+        c.output().unwrap()
+    };
+    // Another scene of the same name and outputs, but other sources, sensors and pairs: every
+    // file differs from the old set's.
+    let other = TINY
+        .replace("[0.0, 3.0]", "[0.0, 4.0]")
+        .replace("[-5.0, 5.0]", "[-6.0, 6.0]")
+        .replace(
+            "wavelength = 1.0\n",
+            "wavelength = 1.0\npairs = [[1, 5], [0, 0]]\n",
+        );
+    let other = write(dir.path(), "other.toml", &other);
+    let commit = ["covariance", other.to_str().unwrap(), "-q", "--seed", "2"];
+    let recovery = ["covariance", tiny, "-q", "--cancel-after-paths", "1"];
+    let check = |what: &str| {
+        let o = run(&recovery, None);
+        assert_eq!(o.status.code(), Some(130), "{what}: {}", stderr(&o));
+        old_or_new(&snapshot(&res), &old).unwrap_or_else(|e| panic!("{what}: {e}"))
+    };
+    let mut outcomes = vec![];
+    let mut k = 0;
+    loop {
+        restore(&res, &old);
+        let o = run(&commit, Some(k));
+        if o.status.success() {
+            break;
+        }
+        assert_eq!(
+            o.status.code(),
+            None,
+            "step {k}: not killed: {}",
+            stderr(&o)
+        );
+        // Kill the recovery at each of its steps too, for the kills in the middle of the
+        // renames and during the disposal of the folder.
+        let killed = dir.path().join("killed");
+        copy_tree(&res, &killed);
+        if k % 7 == 3 {
+            let mut r = 0;
+            loop {
+                copy_tree(&killed, &res);
+                let o = run(&recovery, Some(r));
+                if o.status.code() == Some(130) {
+                    break;
+                }
+                assert_eq!(o.status.code(), None, "{}", stderr(&o));
+                check(&format!("commit killed at step {k}, recovery at {r}"));
+                r += 1;
+            }
+            copy_tree(&killed, &res);
+        }
+        outcomes.push(check(&format!("commit killed at step {k}")));
+        k += 1;
+    }
+    println!("{k} steps: {outcomes:?}");
+    // Both outcomes occur: the old set before the renames' end, the new one after.
+    assert!(k > 20, "{k} steps");
+    assert_eq!(outcomes.first(), Some(&"old"));
+    assert_eq!(outcomes.last(), Some(&"new"));
+}
+
+#[cfg(unix)]
+#[test]
+fn links_as_output_folders_and_thread_counts_are_checked_before_rendering() {
+    // Issue 27, item 6. A dangling symbolic link given as --out was found only after the
+    // render; a scene's output.dir that is a link to a folder outside the current directory
+    // was followed; --threads 65535 started 65 535 threads.
+    let dir = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    let tiny = write(dir.path(), "tiny.toml", TINY);
+    let tiny = tiny.to_str().unwrap();
+    std::os::unix::fs::symlink("/nonexistent/speckle-out", dir.path().join("dangling")).unwrap();
+    std::os::unix::fs::symlink(elsewhere.path(), dir.path().join("res")).unwrap();
+    let start = Instant::now();
+    let billion = ["-q", "--force", "--paths", "1000000000"];
+    let o = speckle(
+        dir.path(),
+        &[&["covariance", tiny, "--out", "dangling"][..], &billion].concat(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("dangling") && stderr(&o).contains("symbolic link"),
+        "{}",
+        stderr(&o)
+    );
+    // TINY writes to output.dir = "res", here a link out of the current directory.
+    let o = speckle(dir.path(), &[&["covariance", tiny][..], &billion].concat());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("output.dir: ") && stderr(&o).contains("outside the current directory"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read_dir(elsewhere.path()).unwrap().count(), 0);
+    for threads in ["0", "65535"] {
+        let o = speckle(
+            dir.path(),
+            &[
+                &["covariance", tiny, "--out", "o", "--threads", threads][..],
+                &billion,
+            ]
+            .concat(),
+        );
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        // 0 is refused by the argument parser, 65535 by the cap.
+        assert!(
+            stderr(&o).contains("--threads")
+                && (threads == "0" || stderr(&o).contains("--threads: must lie in 1..="))
+                && stderr(&o).contains(threads),
+            "{}",
+            stderr(&o)
+        );
+    }
+    assert!(start.elapsed() < Duration::from_secs(10));
+    // With --allow-outside the link is the user's choice, and it is written through.
+    let o = speckle(
+        dir.path(),
+        &[
+            "covariance",
+            tiny,
+            "-q",
+            "--paths",
+            "100",
+            "--allow-outside",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read_dir(elsewhere.path()).unwrap().count() > 0);
+}
+
 /// Starts `args` in `dir`, sends `signal` (or the comma-separated signals) after `wait`, and
 /// returns the exit code and the time from the signal to the exit.
 #[cfg(unix)]

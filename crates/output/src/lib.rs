@@ -34,12 +34,18 @@
 //!    ([`check_name`]).
 //! 3. [`Staged::commit`]: creates the directory if needed and a staging folder
 //!    `.speckle-<pid>-<n>.commit` in it, locked for the process's lifetime; writes every new
-//!    file there (`new-<i>`, synced), the list of names (`manifest`), and a hard link (or copy)
-//!    of every file it will replace (`old-<i>`). Then it writes the marker `committing` and
-//!    renames each `new-<i>` over its name. If a rename fails it renames each `old-<i>` back
-//!    (and removes the new files that had no predecessor); on success it removes the folder.
-//!    A folder with the marker is rolled back the same way by whoever finds it stale; one
-//!    without it is simply removed.
+//!    file there (`new-<i>`, synced), the list of names (`manifest`), a hard link (or copy)
+//!    of every file it will replace (`old-<i>`) and which names had one (`predecessors`).
+//!    Then it writes the marker `committing` and renames each `new-<i>` over its name. If a
+//!    rename fails it renames each `old-<i>` back (and removes the new files that had no
+//!    predecessor). Either way it then disposes of the folder: removes the marker first,
+//!    renames the folder to `.speckle-<pid>-<n>.done`, and removes its files, the lock last.
+//!    A `.commit` folder with the marker is rolled back the same way by whoever finds it
+//!    stale (a roll-back killed half-way can be repeated: a name whose `old-<i>` is gone but
+//!    which had a predecessor is already back); one without it is simply removed; a `.done`
+//!    folder is removed by whoever finds it. So a kill at any step leaves, once the next
+//!    command has recovered, the previous set or the new one, complete, and no temporary
+//!    (`crates/cli/tests/reliability.rs` kills a commit and its recovery at every step).
 //!
 //! Concurrent commits of the same names into one directory by two processes are not
 //! supported (each is all-or-nothing, but the last one wins name by name).
@@ -61,6 +67,8 @@ pub const MAX_NAME_BYTES: usize = 255;
 const PREFIX: &str = ".speckle-";
 /// The staging folder's suffix.
 const SUFFIX: &str = ".commit";
+/// The suffix of a staging folder being removed (its commit is over: finished or rolled back).
+const DONE_SUFFIX: &str = ".done";
 /// The marker that the renames have begun.
 const MARKER: &str = "committing";
 /// A staging folder without a lock file is stale once it is this old (its owner died
@@ -70,6 +78,28 @@ const UNLOCKED_GRACE: Duration = Duration::from_secs(60);
 /// Testing aid: when this environment variable holds `k`, a commit aborts the process (as
 /// SIGKILL would: no clean-up) after its `k`-th rename.
 pub const ABORT_AFTER_RENAMES_VAR: &str = "SPECKLE_TEST_ABORT_AFTER_RENAMES";
+
+/// Testing aid: when this environment variable holds `k`, the process aborts (as SIGKILL
+/// would) right after the `k`-th (from 0) step of the protocol that changes the file system:
+/// every file written, linked, renamed or removed, and every folder created, renamed or
+/// removed, by commits and by recoveries alike.
+pub const ABORT_AT_STEP_VAR: &str = "SPECKLE_TEST_ABORT_AT_STEP";
+
+/// Counts the protocol's steps for [`ABORT_AT_STEP_VAR`] and aborts at the chosen one.
+fn step() {
+    static AT: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    static DONE: AtomicU64 = AtomicU64::new(0);
+    let at = AT.get_or_init(|| {
+        std::env::var(ABORT_AT_STEP_VAR)
+            .ok()
+            .and_then(|v| v.parse().ok())
+    });
+    if let Some(k) = *at
+        && DONE.fetch_add(1, Ordering::SeqCst) == k
+    {
+        std::process::abort();
+    }
+}
 
 /// Why files could not be written.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -177,6 +207,13 @@ pub fn check_dir(dir: &Path) -> Result<(), OutputError> {
                     reason: "exists and is not a directory".into(),
                 });
             }
+            // A symbolic link to nothing: the folder could not be created through it.
+            Err(_) if fs::symlink_metadata(at).is_ok_and(|m| m.file_type().is_symlink()) => {
+                return Err(OutputError::Directory {
+                    path: at.to_path_buf(),
+                    reason: "is a symbolic link to a missing target".into(),
+                });
+            }
             // A missing entry, or one below a file (`file/sub`): look at the parent.
             Err(e)
                 if matches!(
@@ -223,11 +260,18 @@ pub fn abandon() {
 
 /// Undoes what the staging folder `staging` did and removes it: with the marker, renames every
 /// `old-<i>` back over its name and removes the new files that had no predecessor; without
-/// it, only removes the folder.
+/// it, only removes the folder. Safe to repeat after a kill at any of its steps: a name whose
+/// predecessor is already back (the `predecessors` list says it had one) is left alone, and
+/// the marker goes before anything else is removed.
 fn roll_back(staging: &Path) -> std::io::Result<()> {
     let dir = staging.parent().unwrap_or(Path::new("."));
     if staging.join(MARKER).exists() {
         let manifest = fs::read_to_string(staging.join("manifest"))?;
+        // One line per name, 1 where it had a predecessor (absent in folders of older
+        // versions, which did not write it).
+        let had_old: Option<Vec<bool>> = fs::read_to_string(staging.join("predecessors"))
+            .ok()
+            .map(|s| s.lines().map(|l| l == "1").collect());
         for (i, name) in manifest.lines().enumerate() {
             if check_name(name).is_err() {
                 continue;
@@ -237,28 +281,106 @@ fn roll_back(staging: &Path) -> std::io::Result<()> {
                 staging.join(format!("new-{i}")),
                 dir.join(name),
             );
+            let had = had_old.as_ref().and_then(|h| h.get(i).copied());
             if fs::symlink_metadata(&old).is_ok() {
                 fs::rename(&old, &target)?;
+                step();
+            } else if had == Some(true) {
+                // Put back by an earlier roll-back that was killed.
             } else if fs::symlink_metadata(&new).is_err() {
                 match fs::remove_file(&target) {
                     Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+                    Ok(()) => step(),
                     _ => {}
                 }
             }
         }
         sync_dir(dir);
     }
-    fs::remove_dir_all(staging)
+    dispose(staging)
+}
+
+/// Removes a staging folder whose commit is over (finished, or rolled back): first the marker,
+/// so that a kill from here on leaves the files as they are, then the folder renamed to
+/// `.done` (which [`recover`] removes whoever left it), then its files, the lock last.
+fn dispose(staging: &Path) -> std::io::Result<()> {
+    match fs::remove_file(staging.join(MARKER)) {
+        Ok(()) => {
+            sync_dir(staging);
+            step();
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e),
+    }
+    let name = staging
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let done = match name.strip_suffix(SUFFIX) {
+        Some(stem) => {
+            let done = staging.with_file_name(format!("{stem}{DONE_SUFFIX}"));
+            fs::rename(staging, &done)?;
+            step();
+            done
+        }
+        None => staging.to_path_buf(),
+    };
+    remove_folder(&done)
+}
+
+/// Removes the folder `folder` file by file, its lock file last (so that a folder left by a
+/// kill here still has its lock, and is found stale at once).
+fn remove_folder(folder: &Path) -> std::io::Result<()> {
+    let mut names: Vec<PathBuf> = fs::read_dir(folder)?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.file_name().is_some_and(|n| n != "lock"))
+        .collect();
+    names.sort();
+    names.push(folder.join("lock"));
+    for f in names {
+        match fs::remove_file(&f) {
+            Ok(()) => step(),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(e),
+        }
+    }
+    fs::remove_dir(folder)?;
+    step();
+    Ok(())
 }
 
 /// Whether the staging folder `staging` belongs to no live commit: its lock file can be
-/// locked, or it has none and is older than [`UNLOCKED_GRACE`].
+/// locked; or it has none (its owner was killed between creating the folder and its lock,
+/// or is in between now) and the process named in it has ended, or it is older than
+/// [`UNLOCKED_GRACE`].
 fn stale(staging: &Path) -> bool {
     match fs::File::open(staging.join("lock")) {
         Ok(f) => f.try_lock().is_ok(),
-        Err(_) => fs::metadata(staging)
-            .and_then(|m| m.modified())
-            .is_ok_and(|t| t.elapsed().is_ok_and(|age| age > UNLOCKED_GRACE)),
+        Err(_) => {
+            owner_ended(staging)
+                || fs::metadata(staging)
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|t| t.elapsed().is_ok_and(|age| age > UNLOCKED_GRACE))
+        }
+    }
+}
+
+/// Whether the process whose id a staging folder's name carries (`.speckle-<pid>-<n>.commit`)
+/// has ended: known where `/proc` lists the processes (Linux); false where it cannot be told,
+/// and for this process.
+fn owner_ended(staging: &Path) -> bool {
+    let pid = staging
+        .file_name()
+        .and_then(|n| n.to_str())
+        .and_then(|n| n.strip_prefix(PREFIX))
+        .and_then(|n| n.split('-').next())
+        .and_then(|p| p.parse::<u32>().ok());
+    match pid {
+        Some(pid) if pid != std::process::id() => {
+            Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists()
+        }
+        _ => false,
     }
 }
 
@@ -289,13 +411,19 @@ pub fn recover(dir: &Path) -> Result<usize, OutputError> {
         let name = e.file_name();
         let name = name.to_string_lossy();
         let path = e.path();
-        if name.starts_with(PREFIX)
-            && name.ends_with(SUFFIX)
-            && e.file_type().is_ok_and(|t| t.is_dir())
-            && stale(&path)
-        {
+        let folder = name.starts_with(PREFIX) && e.file_type().is_ok_and(|t| t.is_dir());
+        if folder && name.ends_with(SUFFIX) && stale(&path) {
             roll_back(&path).map_err(io_error(&path))?;
             n += 1;
+        } else if folder && name.ends_with(DONE_SUFFIX) {
+            // A commit's folder being removed when its process was killed (or is removing it
+            // now: then both remove it, and either may find a file gone).
+            match remove_folder(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io_error(&path)(e));
+                }
+                _ => n += 1,
+            }
         } else if name.starts_with(PREFIX) && stale_leftover(&name, &path) {
             fs::remove_file(&path).map_err(io_error(&path))?;
             n += 1;
@@ -361,6 +489,7 @@ impl Staging {
             SERIAL.fetch_add(1, Ordering::Relaxed)
         ));
         fs::create_dir(&path).map_err(io_error(&path))?;
+        step();
         active().push(path.clone());
         let staging = |lock| Self {
             path: path.clone(),
@@ -372,7 +501,10 @@ impl Staging {
             Ok(f)
         });
         match lock {
-            Ok(lock) => Ok(staging(lock)),
+            Ok(lock) => {
+                step();
+                Ok(staging(lock))
+            }
             Err(e) => {
                 let _ = fs::remove_dir_all(&path);
                 active().retain(|p| p != &path);
@@ -390,18 +522,28 @@ impl Staging {
         let mut f = fs::File::create_new(path).map_err(io_error(path))?;
         f.write_all(bytes)
             .and_then(|()| f.sync_all())
-            .map_err(io_error(path))
+            .map_err(io_error(path))?;
+        step();
+        Ok(())
     }
 
     /// Rolls back now (while the caller holds the rename lock) and marks it done.
+    /// (A roll-back that fails leaves the folder, marker and all, for the next
+    /// [`recover`] once this process has ended.)
     fn roll_back_now(&mut self) {
-        let _ = roll_back(&self.path);
+        if roll_back(&self.path).is_err() {
+            active().retain(|p| p != &self.path);
+            self.done = true;
+            return;
+        }
         self.finish();
     }
 
-    /// Unregisters it; the folder is gone or is removed here.
+    /// Unregisters it; the folder is gone or is removed here ([`dispose`]).
     fn finish(&mut self) {
-        let _ = fs::remove_dir_all(&self.path);
+        if fs::symlink_metadata(&self.path).is_ok() {
+            let _ = dispose(&self.path);
+        }
         active().retain(|p| p != &self.path);
         self.done = true;
     }
@@ -499,14 +641,19 @@ impl Staged {
         }
         let manifest: String = self.files.iter().map(|(n, _)| format!("{n}\n")).collect();
         Staging::write(&staging.path.join("manifest"), manifest.as_bytes())?;
+        let mut predecessors = String::new();
         for (i, t) in targets.iter().enumerate() {
-            if fs::symlink_metadata(t).is_ok() {
+            let had = fs::symlink_metadata(t).is_ok();
+            if had {
                 let old = staging.file("old", i);
                 if fs::hard_link(t, &old).is_err() {
                     fs::copy(t, &old).map_err(io_error(t))?;
                 }
+                step();
             }
+            predecessors.push_str(if had { "1\n" } else { "0\n" });
         }
+        Staging::write(&staging.path.join("predecessors"), predecessors.as_bytes())?;
         sync_dir(&staging.path);
         if cancelled() {
             return Err(OutputError::Cancelled);
@@ -542,6 +689,7 @@ impl Staged {
                 staging.roll_back_now();
                 return Err(io_error(t)(e));
             }
+            step();
         }
         sync_dir(dir);
         staging.finish();

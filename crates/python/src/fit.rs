@@ -71,7 +71,7 @@ pub fn fit<'py>(
         (None, None) => None,
     };
     let measured = runs_fit::measurement(p, data.as_ref()).map_err(|e| fit_error(py, e))?;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = crate::thread_count(py, threads)?;
     let command = match settings.quantity {
         Quantity::Intensity => Command::Intensity,
         Quantity::G1 | Quantity::G2 => Command::G1,
@@ -79,8 +79,9 @@ pub fn fit<'py>(
     let in_doc = |e| run_error(py, p.in_document(e).into());
     let e = p.estimate(command, t).map_err(in_doc)?;
     cost::guard(&e, cost::machine_memory(), force).map_err(in_doc)?;
-    let records =
-        interruptible(py, threads, |pr| runs_fit::records(p, pr))?.map_err(|e| run_error(py, e))?;
+    let pairs = runs_fit::measured_pairs(settings, measured);
+    let records = interruptible(py, threads, |pr| runs_fit::records(p, &pairs, pr))?
+        .map_err(|e| run_error(py, e))?;
     let f = runs_fit::fit_records(&records, settings, measured).map_err(|e| fit_error(py, e))?;
     let o = &f.outcome;
     let arr = |v: &[f64]| PyArray1::from_slice(py, v);

@@ -444,6 +444,16 @@ impl Progress for Interrupt {
     }
 }
 
+/// The worker threads of a call: `threads`, checked (`1..=speckle::stats::max_threads()`, else a
+/// `SceneError` naming `threads`), or the global pool's.
+pub(crate) fn thread_count(py: Python<'_>, threads: Option<usize>) -> PyResult<usize> {
+    match threads {
+        None => Ok(rayon::current_num_threads()),
+        Some(t) => speckle::stats::check_threads(t)
+            .map_err(|e| scene_error(py, format!("threads: {e}"), Some("threads".into()))),
+    }
+}
+
 /// Runs `f` on a worker thread (on a pool of `threads` threads if given, else on the global
 /// one) with the GIL released; the calling thread checks for signals every 50 ms and, on one
 /// (ctrl-c), cancels the render, waits for it to stop and raises.
@@ -454,19 +464,12 @@ fn interruptible<T: Send>(
 ) -> PyResult<T> {
     let pool = match threads {
         None => None,
-        Some(t) if t >= 1 => Some(
+        Some(t) => Some(
             rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
+                .num_threads(thread_count(py, Some(t))?)
                 .build()
                 .map_err(|e| PyRuntimeError::new_err(e.to_string()))?,
         ),
-        Some(t) => {
-            return Err(scene_error(
-                py,
-                format!("threads: must be at least 1 (got {t})"),
-                Some("threads".into()),
-            ));
-        }
     };
     let stop = Interrupt(AtomicBool::new(false));
     let done = AtomicBool::new(false);
@@ -603,7 +606,7 @@ fn render<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
     let kind = kind_of(py, kind)?;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     runs::guard(p, kind, t, None, force).map_err(|e| run_error(py, e))?;
     let o = interruptible(py, threads, |pr| runs::render(p, kind, pr))?
         .map_err(|e| run_error(py, e))?;
@@ -620,7 +623,7 @@ fn single<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     let in_doc = |e| run_error(py, p.in_document(e).into());
     let j = p.covariance_size(t).map_err(in_doc)?;
     let e = p.estimate(Command::Single, t).map_err(in_doc)?;
@@ -649,7 +652,7 @@ fn g1<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     temporal::guard(p, Command::G1, t, force).map_err(|e| run_error(py, e))?;
     let r = interruptible(py, threads, |pr| temporal::temporal(p, pr))?
         .map_err(|e| run_error(py, e))?;
@@ -686,7 +689,7 @@ fn field_sequence<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     temporal::sequence_motion(p).map_err(|e| run_error(py, e))?;
     temporal::guard(p, Command::Fields, t, force).map_err(|e| run_error(py, e))?;
     let s = interruptible(py, threads, |pr| temporal::field_sequence(p, pr))?
@@ -714,7 +717,7 @@ fn map<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     temporal::guard(p, Command::G1, t, force).map_err(|e| run_error(py, e))?;
     let r = interruptible(py, threads, |pr| temporal::map(p, pr))?.map_err(|e| run_error(py, e))?;
     let shape = [r.pairs, r.lags.len()];
@@ -747,7 +750,7 @@ fn tracking<'py>(
     force: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let p = &problem.p;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     temporal::tracking_check(p).map_err(|e| run_error(py, e))?;
     temporal::guard(p, Command::Tracking, t, force).map_err(|e| run_error(py, e))?;
     let r = interruptible(py, threads, |pr| temporal::tracking(p, pr))?
@@ -913,7 +916,7 @@ fn render_shard(
     let p = &problem.p;
     let kind = kind_of(py, kind)?;
     let shard = Shard::new(index, count).map_err(|e| shard_error(py, e))?;
-    let t = threads.unwrap_or_else(rayon::current_num_threads);
+    let t = thread_count(py, threads)?;
     runs::guard(p, kind, t, Some(shard), force).map_err(|e| run_error(py, e))?;
     let file = interruptible(py, threads, |pr| runs::render_shard(p, kind, shard, pr))?
         .map_err(|e| run_error(py, e))?;

@@ -78,3 +78,17 @@ def test_ctrl_c_interrupts_a_render():
     assert "after (2, 256)" in out, (out, err)
     # Within milliseconds on an idle machine; a generous bound for a loaded one.
     assert waited < 5.0, waited
+
+
+def test_thread_counts_beyond_the_machine_are_refused_before_rendering():
+    # Issue 27, item 6: threads=65535 started 65 535 OS threads.
+    import pytest
+
+    scene = speckle.Scene.example("default", paths=10**9)
+    for threads in (0, 65535):
+        start = time.perf_counter()
+        with pytest.raises(ValueError, match=rf"threads: must lie in 1\.\.=\d+ .*\(got {threads}\)") as e:
+            speckle.intensity(scene, threads=threads)
+        assert e.value.field == "threads"
+        assert time.perf_counter() - start < 5
+    assert speckle.intensity(speckle.Scene.example("default", paths=1000), threads=2).intensity.size > 0

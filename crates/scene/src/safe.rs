@@ -179,22 +179,48 @@ pub fn input_path(
 }
 
 /// Checks the output directory named by `output.dir`: unless `access.output_outside`, a
-/// relative path that stays inside the current directory.
+/// relative path that stays inside the current directory, symbolic links included (the part
+/// of it that exists is resolved).
 pub fn output_dir(field: &str, dir: &Path, access: Access) -> Result<(), SceneError> {
     if dir.as_os_str().is_empty() {
         return Err(invalid(field, "must not be empty"));
     }
-    if !access.output_outside && !stays_below(dir) {
-        return Err(invalid(
+    if access.output_outside {
+        return Ok(());
+    }
+    let outside = || {
+        invalid(
             field,
             format!(
                 "{} is outside the current directory; a scene may only write below it (give \
                  --out DIR on the command line, or pass --allow-outside)",
                 shown_path(dir)
             ),
-        ));
+        )
+    };
+    if !stays_below(dir) {
+        return Err(outside());
     }
-    Ok(())
+    // The deepest part of `dir` that exists, resolved, must lie below the current directory.
+    let mut at = dir;
+    while std::fs::symlink_metadata(at).is_err() {
+        match at.parent() {
+            Some(p) if !p.as_os_str().is_empty() => at = p,
+            _ => return Ok(()),
+        }
+    }
+    match (at.canonicalize(), Path::new(".").canonicalize()) {
+        (Ok(real), Ok(root)) if !real.starts_with(&root) => Err(outside()),
+        // A link whose target is missing: it would be created outside, or not at all.
+        (Err(_), _) => Err(invalid(
+            field,
+            format!(
+                "{} leads to a folder that does not exist (a dangling symbolic link)",
+                shown_path(at)
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Opens `path` for reading without blocking (a FIFO opened for reading would wait for a

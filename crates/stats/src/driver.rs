@@ -410,3 +410,44 @@ where
     }
     merge_chunk(pending.0, pending.1)
 }
+
+/// The most worker threads a render may ask for on this machine: 4 per core the system makes
+/// available (results never depend on the count, and more threads than that only add memory
+/// and scheduling load).
+pub fn max_threads() -> usize {
+    4 * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Checks a requested number of worker threads: at least 1 and at most [`max_threads`];
+/// otherwise a message (without the field's name, which the caller adds).
+pub fn check_threads(threads: usize) -> Result<usize, String> {
+    let max = max_threads();
+    if threads == 0 || threads > max {
+        return Err(format!(
+            "must lie in 1..={max} (4 per core of this machine's {}; results do not depend on \
+             it) (got {threads})",
+            max / 4
+        ));
+    }
+    Ok(threads)
+}
+
+#[cfg(test)]
+mod thread_tests {
+    use super::*;
+
+    #[test]
+    fn thread_counts_are_bounded_by_the_cores() {
+        let max = max_threads();
+        assert!(max >= 4);
+        assert_eq!(check_threads(1), Ok(1));
+        assert_eq!(check_threads(max), Ok(max));
+        for t in [0, max + 1, 65_535] {
+            let e = check_threads(t).unwrap_err();
+            assert!(
+                e.contains(&format!("1..={max}")) && e.contains(&format!("got {t}")),
+                "{e}"
+            );
+        }
+    }
+}

@@ -27,8 +27,8 @@ pub mod shard;
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};
 pub use driver::{
     Batches, MomentsRun, NoProgress, POLL_INTERVAL, PartGroups, Poll, Progress, TARGET_BATCHES,
-    batch_moments, batch_moments_grouped, for_each_path, run_moments, run_ordered,
-    run_ordered_range,
+    batch_moments, batch_moments_grouped, check_threads, for_each_path, max_threads, run_moments,
+    run_ordered, run_ordered_range,
 };
 pub use empirical::{EmpiricalMoments, empirical_moments};
 pub use matrix::{CMatrix, MatrixEstimate};

@@ -190,11 +190,14 @@ pub fn stage_study_arrays(
     Ok(files)
 }
 
-/// Sets the number of worker threads (all cores when `None`).
+/// Sets the number of worker threads (all cores when `None`); a count outside
+/// `1..=speckle::stats::max_threads()` is refused naming `--threads` (exit code 2).
 pub fn set_threads(threads: Option<u16>) -> anyhow::Result<()> {
     if let Some(t) = threads {
+        let t = speckle::stats::check_threads(t as usize)
+            .map_err(|e| InputError(format!("--threads: {e}")))?;
         rayon::ThreadPoolBuilder::new()
-            .num_threads(t as usize)
+            .num_threads(t)
             .build_global()?;
     }
     Ok(())
