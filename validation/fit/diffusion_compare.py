@@ -124,6 +124,7 @@ def main():
     a = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     a.add_argument("--paths-truth", type=int, default=2_000_000)
     a.add_argument("--paths", type=int, default=1_000_000)
+    a.add_argument("--seed", type=int, default=1, help="the fit render's seed")
     a.add_argument("--out")
     o = a.parse_args()
     s_true, a_true = 22.0, 0.13
@@ -136,7 +137,7 @@ def main():
         params = [("medium.sigma_s", 10.0, 40.0), ("medium.sigma_a", 0.02, 0.5)]
         if free:
             params.append(("scale", 0.2, 5.0))
-        f = speckle.fit(scene(20.0, 0.1, o.paths, 1, params), data)
+        f = speckle.fit(scene(20.0, 0.1, o.paths, o.seed, params), data)
         mc = {"method": "speckle fit" + (" (free scale)" if free else ""),
               "mu_a": [f.estimates[1], f.stderr[1]],
               "mu_s_prime": [f.estimates[0] * (1 - G), f.stderr[0] * (1 - G)]}
