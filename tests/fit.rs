@@ -79,12 +79,6 @@ fn true_g1(p: &Problem) -> Vec<f64> {
     t.correlation[1..].iter().map(|c| c.norm() / c0).collect()
 }
 
-/// A standard normal variate (Box-Muller).
-fn normal(rng: &mut PathRng) -> f64 {
-    let [u, v] = rng.next_2();
-    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-}
-
 /// Fits 100 noisy measurements of `g2` from `truth`'s `|g1|`, 25 with the records of each of
 /// `fitted`'s renders; checks the coverage and width of the intervals of the parameters
 /// `(index, true value)`.
@@ -112,7 +106,7 @@ fn coverage(truth: &Problem, fitted: &[Problem], checked: &[(usize, f64)]) {
             let y: Vec<f64> = g1
                 .iter()
                 .zip(&sigma)
-                .map(|(g, s)| 1.0 + BETA * g * g + s * normal(&mut rng))
+                .map(|(g, s)| 1.0 + BETA * g * g + s * rng.standard_normal())
                 .collect();
             let data = Measurement {
                 origin: "synthetic".into(),

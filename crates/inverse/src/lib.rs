@@ -17,10 +17,12 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod family;
 mod fit;
 mod model;
 pub mod noise;
 
+pub use family::{Family, FamilyData, FamilyFit, fit_family};
 pub use fit::{FitOutcome, fit, two_sided_quantile};
 pub use model::{Evaluation, Model};
 

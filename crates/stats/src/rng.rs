@@ -147,6 +147,13 @@ impl PathRng {
         [self.next_f64(), self.next_f64()]
     }
 
+    /// A standard normal variate (Box-Muller on the next two uniforms, its cosine branch).
+    #[inline]
+    pub fn standard_normal(&mut self) -> f64 {
+        let [u, v] = self.next_2();
+        (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
     /// Three uniform variates.
     #[inline]
     pub fn next_3(&mut self) -> [f64; 3] {

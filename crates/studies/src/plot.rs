@@ -274,6 +274,7 @@ mod tests {
                 curve: Curve {
                     c: vec![1.0, 0.7, 0.3],
                     se: vec![0.0, 0.02, 0.02],
+                    left_out: vec![],
                     single_fraction: 0.1,
                     intensity: 1.0,
                     wall: 0.0,

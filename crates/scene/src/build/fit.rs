@@ -26,7 +26,15 @@ pub enum Quantity {
 }
 
 impl Quantity {
-    /// The name in scene files.
+    /// The first column of its measurement file in a scene of `pairs` pairs.
+    pub fn abscissa(self, pairs: usize) -> Abscissa {
+        match self {
+            Quantity::Intensity => Abscissa::Pair(pairs),
+            Quantity::G1 | Quantity::G2 => Abscissa::Increasing("lag"),
+        }
+    }
+
+    /// The name in scene files (`[fit] quantity`).
     pub fn name(self) -> &'static str {
         match self {
             Quantity::G1 => "g1",
@@ -397,6 +405,12 @@ pub fn read_measurement(
     quantity: Quantity,
     pairs: usize,
 ) -> Result<Measurement, SceneError> {
+    read_rows(files, path, quantity.abscissa(pairs))
+}
+
+/// Reads and checks a measurement file (`fit.data`, or `embedded:NAME`) whose first column is
+/// an `abscissa` ([`parse_rows`]).
+pub fn read_rows(files: Files, path: &Path, abscissa: Abscissa) -> Result<Measurement, SceneError> {
     let embedded = path
         .to_str()
         .and_then(|f| f.strip_prefix(crate::build::phase::EMBEDDED));
@@ -416,17 +430,32 @@ pub fn read_measurement(
         }
         None => files.read_text("fit.data", path, MAX_TABLE_BYTES)?,
     };
-    parse_measurement(&text, &shown, quantity, pairs)
+    parse_rows(&text, &shown, abscissa)
 }
 
-/// Parses a measurement: comma-separated rows of 2 or 3 numbers (`#` comments and blank lines
-/// skipped, an optional header line first), errors naming the file, line and column.
+/// What the first column of a measurement holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Abscissa {
+    /// Values `>= 0`, strictly increasing, called by this name in messages (`lag`, `tilt`).
+    Increasing(&'static str),
+    /// Pair indices below this count, each at most once, in any order.
+    Pair(usize),
+}
+
+/// Parses a measurement of `quantity` for a scene of `pairs` pairs ([`parse_rows`]).
 pub fn parse_measurement(
     text: &str,
     shown: &str,
     quantity: Quantity,
     pairs: usize,
 ) -> Result<Measurement, SceneError> {
+    parse_rows(text, shown, quantity.abscissa(pairs))
+}
+
+/// Parses a measurement: comma-separated rows of 2 or 3 numbers (`#` comments and blank lines
+/// skipped, an optional header line first), the first column an `abscissa`; errors name
+/// `fit.data`, the file, line and column.
+pub fn parse_rows(text: &str, shown: &str, abscissa: Abscissa) -> Result<Measurement, SceneError> {
     let at = |line: usize, col: usize, reason: String| {
         invalid(
             "fit.data",
@@ -454,10 +483,9 @@ pub fn parse_measurement(
                 1,
                 format!(
                     "a row has 2 or 3 columns ({}, value[, stderr]); got {}",
-                    if quantity == Quantity::Intensity {
-                        "pair"
-                    } else {
-                        "lag"
+                    match abscissa {
+                        Abscissa::Pair(_) => "pair",
+                        Abscissa::Increasing(name) => name,
                     },
                     cells.len()
                 ),
@@ -492,8 +520,8 @@ pub fn parse_measurement(
             values[c] = v;
         }
         let [a, b, s] = values;
-        match quantity {
-            Quantity::Intensity => {
+        match abscissa {
+            Abscissa::Pair(pairs) => {
                 if a < 0.0 || a.fract() != 0.0 || a >= pairs as f64 {
                     return Err(at(line, 1, format!("a pair index in 0..{pairs} (got {a})")));
                 }
@@ -501,15 +529,15 @@ pub fn parse_measurement(
                     return Err(at(line, 1, format!("pair {a} is given twice")));
                 }
             }
-            Quantity::G1 | Quantity::G2 => {
+            Abscissa::Increasing(name) => {
                 if a < 0.0 {
-                    return Err(at(line, 1, format!("lags are >= 0 (got {a})")));
+                    return Err(at(line, 1, format!("{name}s are >= 0 (got {a})")));
                 }
                 if x.last().is_some_and(|&l| a <= l) {
                     return Err(at(
                         line,
                         1,
-                        format!("lags must increase (got {a} after {})", x[x.len() - 1]),
+                        format!("{name}s must increase (got {a} after {})", x[x.len() - 1]),
                     ));
                 }
             }

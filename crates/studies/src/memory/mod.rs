@@ -46,6 +46,7 @@ mod refocus_images;
 mod render;
 pub(crate) mod study;
 mod tilt;
+mod tilt_fit;
 mod tilt_shift;
 
 pub use refocus::{
@@ -69,6 +70,7 @@ pub use tilt::{
     MAX_G, MAX_TILT_OPTICAL_DEPTH, MemoryTilt, TiltFile, TiltRow, TiltStudy, load_tilt_file,
     load_tilt_str,
 };
+pub use tilt_fit::{TiltFit, TiltFitSpec, TiltFitted};
 pub use tilt_shift::{
     MAX_GRID, MAX_TAU, MAX_TILT_SHIFT_OPTICAL_DEPTH, TiltShift, TiltShiftFile, TiltShiftStudy,
     centroid_slope, eq50, eq50_printed, load_tilt_shift_file, load_tilt_shift_str,

@@ -202,6 +202,9 @@ pub(crate) fn render_groups(
         });
     }
     let (c, se) = jackknife(groups.len(), |skip| GroupSums::correlation(&groups, skip));
+    let left_out = (0..groups.len())
+        .map(|g| GroupSums::correlation(&groups, Some(g)))
+        .collect();
     let total: f64 = groups.iter().map(|g| g.paths).sum();
     let mean =
         |f: &dyn Fn(&GroupSums) -> f64| groups.iter().map(|g| f(g) * g.paths).sum::<f64>() / total;
@@ -209,6 +212,7 @@ pub(crate) fn render_groups(
     Ok(Curve {
         c,
         se,
+        left_out,
         single_fraction: mean(&|g| g.single00) / intensity,
         intensity,
         wall: start.elapsed().as_secs_f64(),
@@ -466,6 +470,8 @@ pub struct Curve {
     pub c: Vec<f64>,
     /// Its jackknife standard errors.
     pub se: Vec<f64>,
+    /// The curve with each group of paths left out (the jackknife's), one per group.
+    pub left_out: Vec<Vec<f64>>,
     /// Single scattering's share of `C_00`.
     pub single_fraction: f64,
     /// `C_00`, the intensity of the untilted pair.

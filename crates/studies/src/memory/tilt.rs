@@ -30,6 +30,7 @@ use serde_json::{Value, json};
 use speckle_estimators::{EstimatorError, Progress, Scene};
 use speckle_medium::HomogeneousBox;
 use speckle_phase::Phase;
+use speckle_scene::safe::{Access, Files};
 use speckle_scene::validate::{invalid as bad, number, positive};
 use speckle_scene::{LoadError, SceneError, load};
 use std::f64::consts::{PI, TAU};
@@ -95,6 +96,9 @@ pub struct TiltFile {
     /// `[output]`.
     #[serde(default)]
     pub output: StudyOutput,
+    /// `[fit]`: `g` fitted to a measured curve ([`super::TiltFitSpec`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<super::TiltFitSpec>,
 }
 
 /// A validated memory-tilt study.
@@ -118,12 +122,15 @@ pub struct TiltStudy {
     pub gs: Vec<f64>,
     /// Tilts, radians, `theta_0 = 0`.
     pub angles: Vec<f64>,
+    /// The fit of `g` to a measured curve, when the file has `[fit]`.
+    pub fit: Option<super::TiltFit>,
 }
 
 /// Loads and validates a memory-tilt study file.
 pub fn load_tilt_file(path: &Path, overrides: &StudyOverrides) -> Result<TiltStudy, LoadError> {
     let (text, stem) = load::read_input(path, "study")?;
-    load_tilt_str(&text, &path.display().to_string(), &stem, overrides)
+    let base = path.parent().unwrap_or(Path::new("."));
+    load_tilt(&text, &path.display().to_string(), &stem, overrides, base)
 }
 
 /// Loads and validates a memory-tilt study from its text: `origin` names it in errors,
@@ -134,14 +141,36 @@ pub fn load_tilt_str(
     default_name: &str,
     overrides: &StudyOverrides,
 ) -> Result<TiltStudy, LoadError> {
+    load_tilt(text, origin, default_name, overrides, Path::new("."))
+}
+
+/// [`load_tilt_str`] with the folder `base` that `[fit]`'s data file is relative to.
+fn load_tilt(
+    text: &str,
+    origin: &str,
+    default_name: &str,
+    overrides: &StudyOverrides,
+    base: &Path,
+) -> Result<TiltStudy, LoadError> {
     let mut file: TiltFile = parse(text).map_err(|e| e.in_document(origin))?;
     overrides
         .apply(&mut file.render, &mut file.output)
         .map_err(|e| e.in_document(origin))?;
-    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+    let access = if overrides.allow_outside {
+        Access::trusting()
+    } else {
+        Access::CONFINED
+    };
+    let files = Files { base, access };
+    validate(file, origin, default_name, files).map_err(|e| LoadError::from(e).in_document(origin))
 }
 
-fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStudy, SceneError> {
+fn validate(
+    file: TiltFile,
+    origin: &str,
+    default_name: &str,
+    files: Files,
+) -> Result<TiltStudy, SceneError> {
     let name = file
         .name
         .clone()
@@ -191,6 +220,18 @@ fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStud
         wavelength / (TAU * thickness),
     )?;
     check_render(&file.render)?;
+    let fit = match &file.fit {
+        Some(spec) => {
+            // The tilts in the unit the file lists them in.
+            let listed = file
+                .angles_mdeg
+                .as_deref()
+                .or(file.k_theta_l.as_deref())
+                .unwrap_or_default();
+            Some(super::tilt_fit::validate(spec, &file.g, listed, files)?)
+        }
+        None => None,
+    };
     Ok(TiltStudy {
         name,
         origin: origin.to_string(),
@@ -200,6 +241,7 @@ fn validate(file: TiltFile, origin: &str, default_name: &str) -> Result<TiltStud
         width: lateral * thickness,
         gs: file.g.clone(),
         angles,
+        fit,
         file,
     })
 }
