@@ -328,9 +328,13 @@ fn two_leg_integral(
     let mut lines = [(0.0, 0.0); 3];
     let mut nl = 0;
     for a in 0..3 {
-        let c = if i[a] > 0.0 {
+        // A component below 1e-12 counts as parallel to the face: its distance, above 1e12
+        // times the point's offset from the plane, passes every other line's within the box
+        // except in a sliver of relative width 1e-12, and computed it would carry an error of
+        // 1e-16 times itself (1e5 box sizes for i_a = 1e-19), which made NaN and 1e196 means.
+        let c = if i[a] > PARALLEL {
             (y[a] - lo[a]) / i[a]
-        } else if i[a] < 0.0 {
+        } else if i[a] < -PARALLEL {
             (hi[a] - y[a]) / -i[a]
         } else {
             continue;
@@ -373,12 +377,27 @@ fn two_leg_integral(
             let d0 = depth(t0).0.max(0.0);
             let start = Complex64::new(-0.5 * sigma_t * d0, 0.0) - alpha * t0;
             let beta = alpha + Complex64::new(0.5 * sigma_t * s, 0.0);
-            acc += start.exp() * exp_integral(beta, t1 - t0);
+            let w = beta * (t1 - t0);
+            acc += if w.re > -500.0 {
+                start.exp() * exp_integral(beta, t1 - t0)
+            } else {
+                // A line of huge slope (an incident direction almost parallel to a face:
+                // i_a ~ 1e-19 gives s ~ 1e19), where e^{-w} overflows while e^{start} is 0: the
+                // same integral as (e^{start} - e^{end}) / beta with the end's exponent from
+                // the depth there (>= 0), so that both terms stay at most 1.
+                let d1 = depth(t1).0.max(0.0);
+                let end = Complex64::new(-0.5 * sigma_t * d1, 0.0) - alpha * t1;
+                (start.exp() - end.exp()) / beta
+            };
         }
         t0 = t1;
     }
     acc
 }
+
+/// Components of the incident direction at most this are parallel to a face
+/// ([`two_leg_integral`]).
+const PARALLEL: f64 = 1e-12;
 
 /// `int_0^T e^{-z t} dt = (1 - e^{-z T}) / z`, by its Taylor series
 /// `T (1 - w/2 + w^2/6 - w^3/24)`, `w = z T`, where `|w| < 1e-3` (truncation below 1e-14).
@@ -775,5 +794,30 @@ mod tests {
         // 2 units of medium with sigma_t = 0.25 on a 7-unit line.
         let expect = Complex64::from_polar((-0.25f64).exp() / 7.0, 2.0 * PI * 7.0);
         assert!((m - expect).norm() < 1e-12);
+    }
+
+    #[test]
+    fn an_incident_wave_almost_parallel_to_a_face_gives_a_finite_mean() {
+        // Fuzz finding (issue 27): a plane wave along [1e19, 1, 0] (a component of 1e-19
+        // across a face) on a flatland square of 100 wavelengths gave NaN and 1e260 means near
+        // the forward direction: the distance to the face behind was computed with an error of
+        // 1e5 box sizes. Such a component now counts as parallel; the mean is that of a
+        // component of 1e-6 on the same side (the model's switch between the legs is not
+        // continuous at exact parallel incidence: module docs) to its change over 1e-6 rad: at
+        // most a phase of k L 1e-6 = 6.3e-4 across the box times the largest (forward) mean.
+        let b = Aabb::flat(glam::DVec2::new(-50.0, -50.0), glam::DVec2::new(50.0, 50.0)).unwrap();
+        let at = |iy: f64, a: f64| {
+            let v = DVec3::new(a.cos(), a.sin(), 0.0);
+            mean_of(&lossless(b, 50.0, DVec3::new(1.0, iy, 0.0).normalize(), v))
+        };
+        let forward = at(1e-6, 0.0).norm();
+        for a in [-0.1f64, -0.08, -0.06, 0.0, 0.04] {
+            let (tiny, small) = (at(1e-19, a), at(1e-6, a));
+            assert!(tiny.is_finite(), "{a}: {tiny}");
+            assert!(
+                (tiny - small).norm() < 6.3e-4 * forward,
+                "{a}: {tiny} vs {small} (forward {forward})"
+            );
+        }
     }
 }
