@@ -61,7 +61,14 @@ impl Material {
     }
 }
 
-/// How a [`VoxelGrid`] samples free flights ([`Medium::sample_flight`]).
+/// Delta tracking's tentative collisions across the box (the majorant times its diagonal)
+/// above which a grid tracks regularly by default: a grid with one voxel (or layer) far
+/// denser than the rest, 1e15 /cm of absorption in a head's CSF, would otherwise take 1e16
+/// null collisions per flight (a hang).
+pub const MAX_DELTA_COLLISIONS: f64 = 1e6;
+
+/// How a [`VoxelGrid`] samples free flights ([`Medium::sample_flight`]); by default delta
+/// tracking, unless its majorant times the box's diagonal exceeds [`MAX_DELTA_COLLISIONS`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Tracking {
     /// Delta (Woodcock) tracking against the global majorant `sigma_bar = max sigma_t`: tentative
@@ -93,7 +100,8 @@ pub enum Tracking {
 /// - Optical depths: exact, by 3D-DDA traversal (Amanatides and Woo 1987) of the part of the
 ///   segment or ray inside the box, summing `sigma_t` times the length in each voxel (runs of
 ///   equal `sigma_t` are merged, so a constant grid reproduces the homogeneous value).
-/// - Flights: delta tracking with the global majorant by default, or regular tracking
+/// - Flights: delta tracking with the global majorant by default (regular tracking where that
+///   would take more than [`MAX_DELTA_COLLISIONS`] steps across the box), or as chosen
 ///   ([`Tracking`], [`VoxelGrid::with_tracking`]). `None` when the flight leaves the box.
 /// - `scattering_volume = sum_voxels sigma_s * voxel measure` (Eq. 35); `sample_scatterer`
 ///   picks a voxel with probability `sigma_s * measure / V` with `u[0]`, then reuses the
@@ -421,11 +429,16 @@ impl VoxelGrid {
             scattering_volume,
             scatter_cdf,
             last_scatterer,
-            tracking: Tracking::default(),
+            tracking: if majorant * bounds.size().length() > MAX_DELTA_COLLISIONS {
+                Tracking::Regular
+            } else {
+                Tracking::Delta
+            },
         })
     }
 
-    /// The same grid with another flight sampler (default [`Tracking::Delta`]).
+    /// The same grid with another flight sampler (by default delta tracking, or regular
+    /// tracking where delta tracking would take more than [`MAX_DELTA_COLLISIONS`] steps).
     pub fn with_tracking(mut self, tracking: Tracking) -> Self {
         self.tracking = tracking;
         self

@@ -47,7 +47,7 @@ pub use aabb::Aabb;
 pub use any::AnyMedium;
 pub use boundary::Interface;
 pub use glam::DVec3;
-pub use grid::{MAX_VOXELS, Material, Tracking, VoxelGrid};
+pub use grid::{MAX_DELTA_COLLISIONS, MAX_VOXELS, Material, Tracking, VoxelGrid};
 pub use homogeneous::HomogeneousBox;
 pub use particles::{Concentration, ParticleMix, ParticleType, TypeMix};
 pub use speckle_phase::Dimension;
