@@ -507,24 +507,37 @@ impl Problem {
                     "render.paths_per_realization",
                 )
             }
-            Command::Mean => (
-                32.0 * j,
-                "sensors",
-                self.mean_seconds(),
-                if self.n_sensors() > 1 {
-                    "sensors"
-                } else {
-                    "medium.size"
-                },
-            ),
+            Command::Mean => (32.0 * j, "sensors", self.mean_seconds(), self.mean_field()),
+        };
+        // The closed-form means that the covariance and the fields (when they add them)
+        // compute besides the paths: part of the command's time, which they can dominate (a
+        // far grid of a million pixels; issue 27, item 8).
+        let means = match command {
+            Command::Covariance => self.mean_seconds(),
+            Command::Fields if r.add_mean => self.mean_seconds(),
+            _ => 0.0,
+        };
+        let time_field = if means > seconds {
+            self.mean_field()
+        } else {
+            time_field
         };
         Ok(Estimate {
             bytes: bytes + fixed,
             memory_field: memory_field.to_string(),
-            seconds: seconds / threads,
+            seconds: (seconds + means) / threads,
             time_field: time_field.to_string(),
             vertices_per_path: vertices,
         })
+    }
+
+    /// The field that drives the means' time: the sensors, or with one the medium's size.
+    fn mean_field(&self) -> &'static str {
+        if self.n_sensors() > 1 {
+            "sensors"
+        } else {
+            "medium.size"
+        }
     }
 
     /// Seconds of the closed-form means on one thread: the far-field to far-field pairs of a

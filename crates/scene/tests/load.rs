@@ -358,3 +358,36 @@ fn render_beams_loads_names_its_field_and_reaches_the_sidecar() {
         assert!(e.contains("render.beams"), "{bad}: {e}");
     }
 }
+
+#[test]
+fn the_estimates_of_commands_that_compute_means_include_them() {
+    // Issue 27, item 8: the closed-form mean of a large far grid, estimated at hours by
+    // `speckle mean`, was not counted in the estimates of the commands that compute it.
+    use speckle_scene::cost::Command;
+    let text = |add_mean: bool| {
+        format!(
+            "wavelength = 1.0\n[medium]\nsize = [40.0, 40.0, 10.0]\nmean_free_path = 5.0\n\
+             [[sources]]\ntype = \"plane\"\ndirection = [0.0, 0.0, 1.0]\n[[sensors]]\n\
+             type = \"far_grid\"\ntheta_x_deg = [-5.0, 5.0]\ntheta_y_deg = [-5.0, 5.0]\n\
+             nx = 300\nny = 300\n[render]\npaths = 100\nrealizations = 2\n\
+             paths_per_realization = 10\nadd_mean = {add_mean}\n[output]\npng = false\n"
+        )
+    };
+    let p = load(&text(true)).unwrap();
+    let mean = p.estimate(Command::Mean, 1).unwrap().seconds;
+    let with_mean = p.estimate(Command::Fields, 1).unwrap();
+    let without = load(&text(false))
+        .unwrap()
+        .estimate(Command::Fields, 1)
+        .unwrap();
+    let covariance = p.estimate(Command::Covariance, 1).unwrap();
+    assert!(
+        mean > 100.0 * without.seconds,
+        "{mean} against {}",
+        without.seconds
+    );
+    assert!(with_mean.seconds >= mean && covariance.seconds >= mean);
+    assert_eq!(with_mean.time_field, "sensors");
+    // The intensity computes no mean.
+    assert!(p.estimate(Command::Intensity, 1).unwrap().seconds < mean);
+}
