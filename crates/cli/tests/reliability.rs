@@ -798,3 +798,58 @@ fn amplitude_tables_of_extreme_scale_and_with_a_byte_order_mark_load() {
         "{summaries:?}"
     );
 }
+
+#[test]
+fn the_memory_estimate_of_a_large_intensity_render_holds_within_a_factor_two() {
+    // Issue 27, item 8: `speckle intensity` of a megapixel far grid was estimated at 552 MiB
+    // and used 2.4 GB: every batch's sums stayed in a buffer pool that diagonal sums never
+    // took from (4 KiB per pair). Here a 300 x 300 grid of two sources (J = 180 000): the peak
+    // resident memory the sidecar records must lie within a factor 2 of the estimate
+    // `speckle check` prints (stated in docs/cli.md), both ways (an estimate too high refuses
+    // work the machine can do).
+    let dir = tempfile::tempdir().unwrap();
+    let text = speckle::scene::examples::example("default")
+        .unwrap()
+        .replace("nx = 16", "nx = 300")
+        .replace("ny = 16", "ny = 300");
+    let scene = write(dir.path(), "big.toml", &text);
+    let scene = scene.to_str().unwrap();
+    // Both at the machine's cores (the estimate depends on the threads).
+    let o = speckle(dir.path(), &["check", scene]);
+    let out = stdout(&o);
+    let line = out
+        .lines()
+        .find(|l| l.contains("cost of intensity"))
+        .unwrap_or_else(|| panic!("{out}"));
+    // "about 104 MiB of memory, roughly ..."
+    let mib: f64 = line
+        .split("about ")
+        .nth(1)
+        .and_then(|r| r.split(" MiB").next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    let o = speckle(
+        dir.path(),
+        &[
+            "intensity",
+            scene,
+            "-q",
+            "--no-png",
+            "--paths",
+            "300",
+            "--threads",
+            "2",
+            "--out",
+            "o",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = std::fs::read_to_string(dir.path().join("o/default.intensity.json")).unwrap();
+    let meta: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let peak = meta["render"]["peak_memory_bytes"].as_f64().unwrap() / (1024.0 * 1024.0);
+    println!("estimate {mib} MiB, peak {peak:.0} MiB");
+    assert!(
+        peak < 2.0 * mib && mib < 2.0 * peak,
+        "estimate {mib} MiB, peak {peak} MiB"
+    );
+}

@@ -118,6 +118,15 @@ pub fn machine_memory() -> Option<f64> {
     Some(kib * 1024.0)
 }
 
+/// The peak resident memory of this process so far in bytes (`VmHWM` of
+/// `/proc/self/status`), when known: the sidecars record it beside the estimate.
+pub fn peak_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = text.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
 /// Refuses `e` when it exceeds the machine: memory above `memory` bytes (the machine's, when
 /// known) or a time above [`MAX_SECONDS`], unless `force`. The error names the field that
 /// drives the cost and says how to go ahead.
@@ -460,7 +469,14 @@ impl Problem {
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::Intensity => {
-                let bytes = 16.0 * j * (8.0 + 4.0 * threads);
+                // The moments of three estimates (sums and squares), the batch sums of two
+                // parts held by the 4 batches per thread in flight, a connector per thread
+                // (four legs per endpoint), and three staged arrays of J doubles.
+                let endpoints = (self.n_sources() + self.n_sensors()) as f64;
+                let bytes = 96.0 * j
+                    + 4.0 * threads * 2.0 * 16.0 * j
+                    + threads * 64.0 * endpoints
+                    + 24.0 * j;
                 let per_path = vertices * (VERTEX_S + per_vertex_connect + 2.0 * j * PAIR_S);
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }

@@ -659,6 +659,14 @@ impl Problem {
     /// source and sensor, the pairs, the units and reproducibility facts, with the command's
     /// `render` settings, `files` and `summary`.
     pub fn sidecar(&self, command: &str, render: Value, files: Value, summary: Value) -> Value {
+        // The process's peak memory so far (the render is over; the outputs are staged), to
+        // compare with the estimate printed before it.
+        fn with_peak_memory(mut render: Value) -> Value {
+            if let (Value::Object(m), Some(peak)) = (&mut render, crate::cost::peak_memory()) {
+                m.insert("peak_memory_bytes".into(), Value::from(peak));
+            }
+            render
+        }
         let (point_source, far_field_sensor) = match self.dimension() {
             Dimension::Three => (
                 "exp(i k r) / r",
@@ -681,7 +689,7 @@ impl Problem {
             "sensor_grid": self.grid_json(),
             "pairs_are_all_combinations": self.all_pairs,
             "pairs": pairs,
-            "render": render,
+            "render": with_peak_memory(render),
             "files": files,
             "summary": summary,
             "units": {

@@ -85,11 +85,17 @@ impl BatchSum {
             _ => None,
         };
         let diag_len = if layout == Layout::General { 0 } else { j };
-        Self {
-            layout,
-            diag: vec![Complex64::ZERO; diag_len],
-            full,
-        }
+        // A diagonal layout's sum is the diagonal, which the driver hands back after its merge:
+        // take it from the buffers too (zeroed), or every batch would leave one there (128 of
+        // them per part: 4 KiB per pair of an intensity render; issue 27, item 8).
+        let diag = if full.is_none() && diag_len > 0 {
+            let mut d = buffers.take(diag_len);
+            d.fill(Complex64::ZERO);
+            d
+        } else {
+            vec![Complex64::ZERO; diag_len]
+        };
+        Self { layout, diag, full }
     }
 
     /// The layout.
