@@ -270,6 +270,15 @@ fn shards_of_other_runs_overlapping_shards_and_damaged_files_are_refused() {
     let e = ShardFile::from_bytes(b"not a shard at all, really", Path::new("y")).unwrap_err();
     assert_eq!(e.to_string(), "y: not a speckle shard file");
     assert!(matches!(error_of(vec![]).as_str(), "no shards to merge"));
+    // A wave shard whose scatterer count is beyond the solver (a fuzz finding: their sum
+    // overflowed and panicked) is refused.
+    let w = problem(Kind::Wave, &over);
+    let mut b = shard(&w, Kind::Wave, 1, 2, 2);
+    if let speckle::runs::ShardData::Wave(s) = &mut b.data {
+        s.scatterer_counts[0] = usize::MAX;
+    }
+    let e = error_of(vec![shard(&w, Kind::Wave, 0, 2, 2), b]);
+    assert!(e.contains("scatterers, above the solver's limit"), "{e}");
 }
 
 /// A scene with a phase table next to it, rendered in shards into files and merged from

@@ -72,6 +72,11 @@ fn long_run() {
         seconds / 3.0,
         s.findings.len()
     );
+    // Both parts' findings are printed before either fails the test (a shard finding used to
+    // hide the scene part's).
+    for (f, input) in t.findings.iter().chain(&s.findings) {
+        eprintln!("FINDING {f:?}\n--- input ---\n{input}--- end ---");
+    }
     report(&s);
     report(&t);
 }

@@ -124,6 +124,15 @@ impl WaveShard {
             ))
             .into());
         }
+        // Counts come from shard files: none can exceed what the solver takes (their sum
+        // overflowed on a crafted shard: a fuzz finding, issue 27).
+        if let Some(&c) = counts.iter().find(|&&c| c > crate::MAX_SCATTERERS) {
+            return Err(ShardError::Mismatch(format!(
+                "a configuration of {c} scatterers, above the solver's limit of {}",
+                crate::MAX_SCATTERERS
+            ))
+            .into());
+        }
         let moments = empirical_moments(&fields)?;
         let mean_scatterers = counts.iter().sum::<usize>() as f64 / r as f64;
         Ok(WaveEstimate {
