@@ -88,10 +88,12 @@ impl Detector {
                 format!("must be finite (got {center})"),
             ));
         }
-        if !(radius.is_finite() && radius > 0.0) {
+        // At least 1e-150: the reading divides by the area pi r^2, which underflows to 0
+        // (a NaN reading) below about 1e-154 (a fuzz finding, issue 27).
+        if !(radius.is_finite() && radius >= 1e-150) {
             return Err(check::invalid(
                 format!("{field}.radius"),
-                format!("must be finite and > 0 (got {radius})"),
+                format!("must be finite and at least 1e-150 (got {radius:e})"),
             ));
         }
         if !(outside_index.is_finite() && outside_index >= 1.0) {
@@ -383,6 +385,8 @@ mod tests {
         assert!(msg(det(on, 0.0, 0.5, None)).starts_with("sensors[0].radius"));
         assert!(msg(det(on, -1.0, 0.5, None)).starts_with("sensors[0].radius"));
         assert!(msg(det(on, f64::NAN, 0.5, None)).starts_with("sensors[0].radius"));
+        // A radius whose area underflows (a NaN reading before).
+        assert!(msg(det(on, 1e-300, 0.5, None)).starts_with("sensors[0].radius"));
         for na in [0.0, -0.1, 1.01, f64::NAN, f64::INFINITY] {
             let m = msg(det(on, 0.05, na, None));
             assert!(m.starts_with("sensors[0].numerical_aperture"), "{m}");
