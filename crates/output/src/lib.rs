@@ -71,6 +71,9 @@ const SUFFIX: &str = ".commit";
 const DONE_SUFFIX: &str = ".done";
 /// The marker that the renames have begun.
 const MARKER: &str = "committing";
+
+/// Bytes per `write` call of a staged file.
+const WRITE_CHUNK: usize = 1 << 20;
 /// A staging folder without a lock file is stale once it is this old (its owner died
 /// between creating it and locking it).
 const UNLOCKED_GRACE: Duration = Duration::from_secs(60);
@@ -517,10 +520,14 @@ impl Staging {
         self.path.join(format!("{what}-{i}"))
     }
 
-    /// Writes `bytes` to `path`, synced.
+    /// Writes `bytes` to `path` in chunks of [`WRITE_CHUNK`], synced. (One `write` of a
+    /// quarter gigabyte ran at 140 MB/s on the reference machine's ext4, 1 MiB chunks at 1.1
+    /// GB/s: a J = 4097 covariance spent 8 of its 22 s in four such writes.)
     fn write(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
         let mut f = fs::File::create_new(path).map_err(io_error(path))?;
-        f.write_all(bytes)
+        bytes
+            .chunks(WRITE_CHUNK)
+            .try_for_each(|c| f.write_all(c))
             .and_then(|()| f.sync_all())
             .map_err(io_error(path))?;
         step();

@@ -30,8 +30,10 @@ pub const MAX_PNG_PIXELS: f64 = (1u64 << 26) as f64;
 pub const MAX_PNG_FILES: usize = 10_000;
 
 // Single-thread speeds of the reference machine (seconds per operation).
-/// A vertex: flight, roulette, direction, connection bookkeeping.
-const VERTEX_S: f64 = 1.5e-7;
+/// A vertex: flight, roulette, direction, connection bookkeeping (`dcs.toml`'s 200 000 paths
+/// of about 150 vertices took 0.5 s on two threads; was 1.5e-7, which put the time of renders
+/// with few endpoints 5 times too high).
+const VERTEX_S: f64 = 3.5e-8;
 /// One endpoint leg of a connection (113 M/s).
 const LEG_S: f64 = 9e-9;
 /// The cost of one vMF lobe of a Gaussian beam's connection (a complex square root, logarithm
@@ -50,8 +52,21 @@ pub fn gaussian_legs(beams: f64, lobes: usize) -> f64 {
 const PAIR_S: f64 = 4e-9;
 /// One complex multiply-add of the rank-K covariance update (8 flops at 60 GFLOP/s).
 const MAC_S: f64 = 8.0 / 6e10;
-/// One point of the far-field mean quadrature.
-const QUADRATURE_S: f64 = 6e-8;
+/// One point of the far-field mean quadrature (measured on `default.toml`, transmission, and
+/// `backscatter.toml`, where the faces the wave enters take both legs at about the same cost).
+const QUADRATURE_S: f64 = 5e-8;
+/// The merge of one batch's sums into the moments, per entry of a `J x J` matrix (complex
+/// sums and squares of three estimates): memory bound, so counted once whatever the threads
+/// (128 batches of `J = 4097` took 16 s on one thread of the reference machine, 10 s on two).
+const MERGE_S: f64 = 5e-9;
+/// A batch's intensity sums, per pair, whatever the threads: the zeroed sums of two parts,
+/// and their merge into the moments (11 s for 128 batches of `J = 2 000 000` on two threads of
+/// the reference machine).
+const DIAGONAL_MERGE_S: f64 = 4.4e-8;
+/// What a `J x J` render does after its paths, per entry and on one thread whatever the
+/// threads: the standard errors, the encoding and synced writes of four arrays, the PNG (3-6 s
+/// for `J = 4097`, with the page cache's write-back of the previous files).
+const MATRIX_OUTPUT_S: f64 = 3e-7;
 
 /// What a command will cost.
 #[derive(Debug, Clone, PartialEq)]
@@ -204,7 +219,7 @@ fn g1_cost(j: f64, lags: f64, drift: bool, legs: f64, threads: f64) -> (f64, f64
     let per_vertex_connect = legs * LEG_S + j * PAIR_S;
     (
         bytes,
-        VERTEX_S + connects * per_vertex_connect + 8.0 * j * lags * PAIR_S,
+        VERTEX_S + connects * per_vertex_connect + j * lags * PAIR_S,
     )
 }
 
@@ -477,7 +492,9 @@ impl Problem {
                     + 4.0 * threads * 2.0 * 16.0 * j
                     + threads * 64.0 * endpoints
                     + 24.0 * j;
-                let per_path = vertices * (VERTEX_S + per_vertex_connect + 2.0 * j * PAIR_S);
+                // Per vertex, beyond the connections, the two parts' products added into
+                // the batch's sums (a random walk over `J` doubles, memory bound at large J).
+                let per_path = vertices * (VERTEX_S + per_vertex_connect + 5.0 * j * PAIR_S);
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::G1 => {
@@ -533,18 +550,38 @@ impl Problem {
             Command::Fields if r.add_mean => self.mean_seconds(),
             _ => 0.0,
         };
+        // Whatever the threads: the merges of the batches' matrices, and after the paths their
+        // standard errors and files.
+        let serial = match command {
+            Command::Covariance | Command::Single => {
+                self.merged_entries(j * j) * MERGE_S + j * j * MATRIX_OUTPUT_S
+            }
+            Command::Intensity => self.merged_entries(j) * DIAGONAL_MERGE_S,
+            _ => 0.0,
+        };
         let time_field = if means > seconds {
             self.mean_field()
+        } else if serial > seconds / threads {
+            "sensors"
         } else {
             time_field
         };
         Ok(Estimate {
             bytes: bytes + fixed,
             memory_field: memory_field.to_string(),
-            seconds: (seconds + means) / threads,
+            seconds: (seconds + means) / threads + serial,
             time_field: time_field.to_string(),
             vertices_per_path: vertices,
         })
+    }
+
+    /// Entries merged into the moments, `entries` per batch: the render is cut into about
+    /// [`speckle_stats::TARGET_BATCHES`] batches whatever its paths, so for large `J` the
+    /// merges, not the paths, set the time.
+    fn merged_entries(&self, entries: f64) -> f64 {
+        let batches =
+            speckle_stats::Batches::about(self.render.paths, speckle_stats::TARGET_BATCHES);
+        batches.count() as f64 * entries
     }
 
     /// The field that drives the means' time: the sensors, or with one the medium's size.
@@ -556,45 +593,43 @@ impl Problem {
         }
     }
 
-    /// Seconds of the closed-form means on one thread: the far-field to far-field pairs of a
-    /// plane wave integrate over the box faces with up to `(512 * 4)^2` points per face.
+    /// Seconds of the closed-form means on one thread. A plane-wave source and a far-field
+    /// sensor integrate over the faces where paths leave towards the sensor, with the rule of
+    /// `speckle_endpoints::mean` (4 points per panel, `ceil(extent (k |i - v| + sigma_t))`
+    /// panels clamped to 48..512 per axis). Every other pair is a closed form.
     fn mean_seconds(&self) -> f64 {
+        use speckle_endpoints::{Sensor, Source};
         let m = self.scene.medium();
         let size = m.bounds().size();
         let k = self.scene.wavenumber();
         let sigma_t = m.uniform_sigma_t().unwrap_or(0.0);
-        let rate = 2.0 * k + sigma_t;
-        let dims = m.dimension().count() as usize;
-        let points_per_axis: Vec<f64> = (0..dims)
-            .map(|i| 4.0 * (size[i] * rate).ceil().clamp(48.0, 512.0))
-            .collect();
-        // Each face is a rule over the other axes.
-        let per_pair: f64 = (0..dims)
-            .map(|axis| {
-                (0..dims)
-                    .filter(|&a| a != axis)
-                    .map(|a| points_per_axis[a])
-                    .product::<f64>()
-            })
-            .sum();
-        let far_pairs = self
+        let (sources, sensors) = (self.scene.sources(), self.scene.sensors());
+        let points = |ext: f64, rate: f64| {
+            if ext == 0.0 {
+                1.0
+            } else {
+                4.0 * (ext * rate).ceil().clamp(48.0, 512.0)
+            }
+        };
+        let quadrature: f64 = self
             .scene
             .pairs()
             .iter()
-            .filter(|p| {
-                matches!(
-                    (
-                        self.scene.sources()[p.source],
-                        self.scene.sensors()[p.sensor]
-                    ),
-                    (
-                        speckle_endpoints::Source::PlaneWave { .. },
-                        speckle_endpoints::Sensor::FarField { .. }
-                    )
-                )
+            .map(|p| match (sources[p.source], sensors[p.sensor]) {
+                (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
+                    let rate = k * (i - v).length() + sigma_t;
+                    (0..3)
+                        .filter(|&axis| v[axis] != 0.0)
+                        .map(|axis| {
+                            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+                            points(size[a1], rate) * points(size[a2], rate)
+                        })
+                        .sum::<f64>()
+                }
+                _ => 0.0,
             })
-            .count() as f64;
-        far_pairs * per_pair * QUADRATURE_S + self.pairs() as f64 * 1e-6
+            .sum();
+        quadrature * QUADRATURE_S + self.pairs() as f64 * 1e-6
     }
 }
 
