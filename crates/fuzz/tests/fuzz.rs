@@ -65,6 +65,9 @@ fn long_run() {
         seconds * 2.0 / 3.0,
         t.findings.len()
     );
+    // Each part's findings are printed as soon as it ends (a shard finding used to hide the
+    // scene part's; and the shard part takes a third of the time).
+    print_findings(&t);
     let s = run_shards(seed as u64, u64::MAX, seconds / 3.0, &base);
     println!(
         "fuzz: {} shard inputs in {:.0} s (seed {seed}), {} findings",
@@ -72,11 +75,14 @@ fn long_run() {
         seconds / 3.0,
         s.findings.len()
     );
-    // Both parts' findings are printed before either fails the test (a shard finding used to
-    // hide the scene part's).
-    for (f, input) in t.findings.iter().chain(&s.findings) {
-        eprintln!("FINDING {f:?}\n--- input ---\n{input}--- end ---");
-    }
+    print_findings(&s);
     report(&s);
     report(&t);
+}
+
+/// Prints every finding of `t` with its input.
+fn print_findings(t: &speckle_fuzz::Tally) {
+    for (f, input) in &t.findings {
+        eprintln!("FINDING {f:?}\n--- input ---\n{input}--- end ---");
+    }
 }

@@ -12,7 +12,7 @@
 use crate::SceneError;
 use crate::problem::Problem;
 use crate::validate::invalid;
-use speckle_medium::{AnyMedium, Dimension, Medium};
+use speckle_medium::{AnyMedium, DVec3, Dimension, Medium};
 use speckle_phase::PhaseFunction;
 
 /// Rough times above this (seconds) are refused without `force`: a day.
@@ -244,42 +244,107 @@ pub enum Command {
     Tracking,
 }
 
-/// The optical extents of the medium along each axis, its albedo and its extinction, with a
-/// voxel grid taken at its mean extinction.
-fn optics(m: &AnyMedium) -> (Vec<f64>, f64) {
+/// Parts of the medium whose paths [`expected_vertices`] estimates, as optical extents along
+/// each axis and an albedo: the whole medium (a voxel grid at its mean extinction and albedo),
+/// and for a grid each set of voxels of about the same extinction (within a quarter octave,
+/// at the set's largest extinction and albedo) that fills at least half of its bounding box,
+/// such as a layer: a thin layer far denser than the rest (a scalp of 4e9 /cm over a
+/// strongly absorbing CSF, a fuzz finding of issue 27) keeps paths in it that the mean
+/// hides.
+fn regions(m: &AnyMedium) -> Vec<(Vec<f64>, f64)> {
     let size = m.bounds().size();
     let dims = m.dimension().count() as usize;
-    let (sigma_t, albedo) = match m {
-        AnyMedium::Box(b) => (b.extinction(), b.scattering() / b.extinction()),
+    let extents = |sigma_t: f64, size: DVec3| (0..dims).map(|i| sigma_t * size[i]).collect();
+    match m {
+        AnyMedium::Box(b) => vec![(
+            extents(b.extinction(), size),
+            b.scattering() / b.extinction(),
+        )],
         AnyMedium::Grid(g) => {
             let (t, s) = (g.voxel_sigma_t(), g.voxel_sigma_s());
             let n = t.len().max(1) as f64;
             let (st, ss) = (t.iter().sum::<f64>(), s.iter().sum::<f64>());
-            (st / n, if st > 0.0 { ss / st } else { 0.0 })
+            let mean_albedo = if st > 0.0 { ss / st } else { 0.0 };
+            let mut out = vec![(extents(st / n, size), mean_albedo)];
+            // Per quarter-octave bucket of extinction: voxel count, bounding box of voxel
+            // indices, largest extinction and albedo.
+            struct Bucket {
+                count: usize,
+                lo: [usize; 3],
+                hi: [usize; 3],
+                sigma_t: f64,
+                albedo: f64,
+            }
+            let [_, ny, nz] = g.dims();
+            let mut buckets: std::collections::BTreeMap<i64, Bucket> = Default::default();
+            for (i, (&vt, &vs)) in t.iter().zip(s).enumerate() {
+                if !(vt > 0.0 && vt.is_finite()) {
+                    continue;
+                }
+                let idx = [i / (ny * nz), (i / nz) % ny, i % nz];
+                let key = (4.0 * vt.log2()).floor() as i64;
+                let b = buckets.entry(key).or_insert(Bucket {
+                    count: 0,
+                    lo: idx,
+                    hi: idx,
+                    sigma_t: 0.0,
+                    albedo: 0.0,
+                });
+                b.count += 1;
+                for a in 0..3 {
+                    b.lo[a] = b.lo[a].min(idx[a]);
+                    b.hi[a] = b.hi[a].max(idx[a]);
+                }
+                b.sigma_t = b.sigma_t.max(vt);
+                b.albedo = b.albedo.max(vs / vt);
+            }
+            let cell = g.voxel_size();
+            for b in buckets.values() {
+                let span: [usize; 3] = std::array::from_fn(|a| b.hi[a] - b.lo[a] + 1);
+                if 2 * b.count < span.iter().product::<usize>() {
+                    continue;
+                }
+                let extent = DVec3::new(
+                    span[0] as f64 * cell.x,
+                    span[1] as f64 * cell.y,
+                    span[2] as f64 * cell.z,
+                );
+                out.push((extents(b.sigma_t, extent), b.albedo));
+            }
+            out
         }
-    };
-    let taus = (0..dims).map(|i| sigma_t * size[i]).collect();
-    (taus, albedo)
+    }
 }
 
 impl Problem {
-    /// Expected vertices of a sub-path in this scene ([`expected_vertices`]).
-    pub fn vertices_per_path(&self) -> f64 {
+    /// Expected vertices of a sub-path in this scene ([`expected_vertices`]): the most of any
+    /// of its [`regions`], with the optical extents of that region.
+    fn path_length(&self) -> (f64, Vec<f64>) {
         let m = self.scene.medium();
-        let (taus, albedo) = optics(m);
         let g = self
             .scene
             .phases()
             .iter()
             .map(|p| p.mean_cosine())
             .fold(-1.0, f64::max);
-        expected_vertices(
-            &taus,
-            albedo,
-            g,
-            m.dimension(),
-            self.render.sampling.max_vertices,
-        )
+        regions(m)
+            .into_iter()
+            .map(|(taus, albedo)| {
+                let v = expected_vertices(
+                    &taus,
+                    albedo,
+                    g,
+                    m.dimension(),
+                    self.render.sampling.max_vertices,
+                );
+                (v, taus)
+            })
+            .fold((0.0, Vec::new()), |a, b| if b.0 > a.0 { b } else { a })
+    }
+
+    /// Expected vertices of a sub-path in this scene ([`expected_vertices`]).
+    pub fn vertices_per_path(&self) -> f64 {
+        self.path_length().0
     }
 
     /// The field that sets the medium's extinction, as the scene file gives it.
@@ -299,7 +364,7 @@ impl Problem {
     /// Refuses paths that are effectively endless ([`MAX_VERTICES_PER_PATH`]) unless
     /// `render.max_vertices` bounds them; names the field that sets the extinction.
     pub fn check_path_length(&self) -> Result<f64, SceneError> {
-        let v = self.vertices_per_path();
+        let (v, taus) = self.path_length();
         if v > MAX_VERTICES_PER_PATH {
             return Err(invalid(
                 self.extinction_field(),
@@ -307,11 +372,7 @@ impl Problem {
                     "the medium is so optically thick (optical extents {:?}) that a path would \
                      scatter about {v:.1e} times before it leaves: it would never end; use a \
                      thinner medium, or bound the paths with render.max_vertices (biased)",
-                    optics(self.scene.medium())
-                        .0
-                        .iter()
-                        .map(|t| format!("{t:.3e}"))
-                        .collect::<Vec<_>>()
+                    taus.iter().map(|t| format!("{t:.3e}")).collect::<Vec<_>>()
                 ),
             ));
         }

@@ -391,3 +391,27 @@ fn the_estimates_of_commands_that_compute_means_include_them() {
     // The intensity computes no mean.
     assert!(p.estimate(Command::Intensity, 1).unwrap().seconds < mean);
 }
+
+#[test]
+fn a_dense_layer_sets_the_path_length_whatever_the_grids_mean() {
+    // Issue 27, a fuzz finding: a scalp of 4.3e9 /cm scattering (albedo 1 - 4e-11) over a CSF
+    // of 1e15 /cm absorption. At the grid's mean extinction and albedo a path has about one
+    // vertex; in the scalp, where the source's paths start, about 1e10. The estimate must see
+    // the layer: far beyond a day, so the guard refuses the render.
+    let text = include_str!("../../fuzz/corpus/finding_dense_scalp.toml");
+    let p = load(text).unwrap();
+    let e = p
+        .estimate(speckle_scene::cost::Command::Intensity, 1)
+        .unwrap();
+    assert!(e.vertices_per_path > 1e9, "{}", e.vertices_per_path);
+    assert!(
+        e.seconds > speckle_scene::cost::MAX_SECONDS,
+        "{}",
+        e.seconds
+    );
+    // The shipped head: its layers give the same order as its mean (about a thousand vertices
+    // per path, capped by absorption).
+    let head = load(speckle_scene::examples::example("head").unwrap()).unwrap();
+    let v = head.vertices_per_path();
+    assert!(v > 100.0 && v < 1e4, "{v}");
+}
