@@ -1,0 +1,275 @@
+use super::*;
+
+#[test]
+fn powers_are_the_exponentials_to_rounding_and_stop_before_subnormals() {
+    for (lags, x) in [
+        ((1..=64).map(|m| m as f64 * 0.05).collect::<Vec<_>>(), 0.03),
+        // Bases either side of the least whose 57th power is above `TINY` (`1.2e-5`).
+        ((1..=64).map(|m| m as f64 * 0.05).collect(), 10.9),
+        ((1..=64).map(|m| m as f64 * 0.05).collect(), 11.7),
+        (vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4], 1.2),
+        (vec![0.1, 0.7, 0.3], 69.0),
+        (vec![0.0, 2e-7, 5e-7, 1e-6, 1.5e-5], 1e-3),
+    ] {
+        let p = Powers::of(&lags).unwrap();
+        let mut s = PowerSums::new(&p, 2);
+        s.add(&[(1, Complex64::new(2.0, -1.0), x)]);
+        let mut sums = vec![
+            BatchSum::new(
+                speckle_stats::Layout::GeneralDiagonal,
+                2,
+                &Default::default()
+            );
+            lags.len()
+        ];
+        let mut buf = vec![Complex64::ZERO; 2];
+        s.flush(&mut sums, |l| l, &mut buf);
+        for (l, sum) in sums.into_iter().enumerate() {
+            let got = sum.finish();
+            let m = (lags[l].abs() / p.delta).round() as i32;
+            let want = if lags[l] == 0.0 {
+                Complex64::ZERO
+            } else {
+                Complex64::new(2.0, -1.0) * (-m as f64 * x).exp()
+            };
+            assert_eq!(got[0], Complex64::ZERO);
+            // An ulp of `r` is `m` ulps of `r^m`, and the products add a few; the
+            // reference `exp(-m x)` carries the rounding of `m x` (relative `m x eps / 2`).
+            let tol = if want.norm() < 1e-250 {
+                1e-250
+            } else {
+                ((m + 16) as f64 * 2.0 + m as f64 * x / 2.0) * f64::EPSILON * want.norm()
+            };
+            assert!(
+                (got[1] - want).norm() <= tol,
+                "lag {l}: {} vs {want}",
+                got[1]
+            );
+            assert!(got[1].re == 0.0 || got[1].re.abs() >= f64::MIN_POSITIVE);
+        }
+    }
+}
+
+/// Every instruction set gives bitwise the same sums: the dispatched loops against the
+/// plain (one lane) ones, on regular and gathered lags, with powers that underflow part of
+/// the way.
+#[test]
+fn every_instruction_set_gives_the_same_sums() {
+    for lags in [
+        (1..=64).map(|m| m as f64 * 0.05).collect::<Vec<_>>(),
+        (1..=100).map(|m| m as f64 * 0.05).collect(),
+        vec![
+            0.0, 2e-7, 5e-7, 1e-6, 2e-6, 3e-6, 4e-6, 5e-6, 6e-6, 8e-6, 1e-5,
+        ],
+    ] {
+        let p = Powers::of(&lags).unwrap();
+        let (mut fast, mut plain) = (PowerSums::new(&p, 3), PowerSums::new(&p, 3));
+        plain.arch = pulp::Arch::Scalar;
+        let terms: Vec<_> = (0..40)
+            .map(|i| {
+                let x = [1e-3, 0.1, 0.7, 6.9, 92.0][i % 5] * (1.0 + 1e-3 * i as f64);
+                let z = Complex64::new(1.0 + i as f64, if i % 3 == 0 { 0.0 } else { -0.5 });
+                (i % 3, z, x)
+            })
+            .collect();
+        fast.add(&terms);
+        plain.add(&terms);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&fast.re), bits(&plain.re));
+        assert_eq!(bits(&fast.im), bits(&plain.im));
+        assert!(fast.re.iter().any(|x| *x != 0.0));
+    }
+}
+
+/// [`exp_neg`] against the library's `exp`: within 2 ulps over the range, exact at zero,
+/// zero past 700.
+#[test]
+fn exponentials_are_within_two_ulps() {
+    let mut worst: f64 = 0.0;
+    for i in 0..200_000 {
+        let x = 700.0 * (i as f64 / 200_000.0).powi(3);
+        let (got, want) = (exp_neg(x), (-x).exp());
+        worst = worst.max((got - want).abs() / (want * f64::EPSILON));
+    }
+    assert!(worst <= 2.0, "{worst} ulps");
+    assert_eq!(exp_neg(0.0), 1.0);
+    assert_eq!(exp_neg(700.5), 0.0);
+    assert_eq!(exp_neg(f64::INFINITY), 0.0);
+}
+
+/// Terms held while their exponent repeats ([`PowerSums::add_held`]) give the sums of
+/// [`PowerSums::add`] to rounding, and a flush releases what is held.
+#[test]
+fn held_terms_give_the_same_sums() {
+    let lags: Vec<f64> = (0..40).map(|m| m as f64 * 0.1).collect();
+    let p = Powers::of(&lags).unwrap();
+    let terms: Vec<_> = (0..30)
+        .map(|i| {
+            let x = if i % 7 == 6 {
+                0.3
+            } else {
+                0.01 * (1 + i % 2) as f64
+            };
+            (i % 2, Complex64::new(1.0 + i as f64, 0.1 * i as f64), x)
+        })
+        .collect();
+    let flushed = |held: bool| {
+        let mut s = PowerSums::new(&p, 2);
+        for chunk in terms.chunks(4) {
+            if held {
+                s.add_held(chunk);
+            } else {
+                s.add(chunk);
+            }
+        }
+        let mut sums = vec![
+            BatchSum::new(
+                speckle_stats::Layout::GeneralDiagonal,
+                2,
+                &Default::default()
+            );
+            lags.len()
+        ];
+        s.flush(&mut sums, |l| l, &mut [Complex64::ZERO; 2]);
+        sums.into_iter().map(|b| b.finish()).collect::<Vec<_>>()
+    };
+    let (a, b) = (flushed(true), flushed(false));
+    for (l, (x, y)) in a.iter().zip(&b).enumerate().skip(1) {
+        for e in 0..2 {
+            assert!(y[e].norm() > 1.0, "lag {l}");
+            assert!(
+                (x[e] - y[e]).norm() <= 1e-14 * y[e].norm(),
+                "lag {l}: {x:?} {y:?}"
+            );
+        }
+    }
+}
+
+/// The terms of slot sums' tests: `entries` entries of three combinations, over several
+/// vertices, with bases from near one to ones that underflow within the lags.
+fn slot_terms(entries: usize, vertices: usize) -> Vec<Vec<(usize, usize, f64, f64)>> {
+    (0..vertices)
+        .map(|v| {
+            let mut terms = Vec::new();
+            for e in 0..entries {
+                for c in 0..3 {
+                    let i = (v * entries + e) * 3 + c;
+                    let x = [1e-3, 0.1, 0.7, 6.9, 92.0, 2e-3, 0.3][i % 7] * (1.0 + 1e-3 * i as f64);
+                    // Some combinations left out (not set) and some negative.
+                    if i % 11 != 4 {
+                        terms.push((e, c, (1.0 + i as f64) * if c == 1 { -0.3 } else { 1.0 }, x));
+                    }
+                }
+            }
+            terms
+        })
+        .collect()
+}
+
+/// Slot sums after flushing, per lag and entry.
+fn slot_sums(
+    lags: &[f64],
+    entries: usize,
+    arch: Option<pulp::Arch>,
+    terms: &[Vec<(usize, usize, f64, f64)>],
+) -> Vec<Vec<Complex64>> {
+    let p = Powers::of(lags).unwrap();
+    let mut s = SlotSums::new(&p, entries, 3);
+    if let Some(a) = arch {
+        s.arch = a;
+    }
+    for vertex in terms {
+        let mut t = s.terms();
+        for &(e, c, z, x) in vertex {
+            t.set(e, c, z, x);
+        }
+        s.add();
+    }
+    let layout = speckle_stats::Layout::GeneralDiagonal;
+    let mut sums = vec![BatchSum::new(layout, entries, &Default::default()); lags.len()];
+    let mut buf = vec![Complex64::ZERO; entries];
+    s.flush(&mut sums, |l| l, &mut buf);
+    sums.into_iter().map(|b| b.finish()).collect()
+}
+
+/// Slot sums are `sum z exp(-m x)` to rounding (each power `m` products, each sum a few
+/// dozen terms of either sign: the tolerance is `(m + 16) eps` of the sum of the terms'
+/// magnitudes, plus the reference's own rounding of `m x`), with powers below `TINY` left
+/// out, on regular lags, gathered lags (with a zero lag and two lags of equal `|t|`), for
+/// many entries (vector lanes) and for few (the [`PowerSums`] route).
+#[test]
+fn slot_sums_are_the_exponentials_to_rounding() {
+    let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
+    let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
+    for (lags, entries) in [
+        (&regular, 11),
+        (&gathered, 9),
+        (&regular, 2),
+        (&gathered, 1),
+    ] {
+        let p = Powers::of(lags).unwrap();
+        let terms = slot_terms(entries, 3);
+        let got = slot_sums(lags, entries, None, &terms);
+        for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
+            let m = (t.abs() / p.delta).round();
+            for (e, g) in row.iter().enumerate() {
+                let (mut want, mut size, mut cond) = (0.0, 0.0, 0.0);
+                for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
+                    let v = if *t == 0.0 { 0.0 } else { z * (-m * x).exp() };
+                    if v.abs() >= PowerSums::TINY {
+                        want += v;
+                        size += v.abs();
+                        cond += v.abs() * m * x / 2.0;
+                    }
+                }
+                let tol = ((m + 16.0) * size + cond) * f64::EPSILON + 1e-250;
+                assert_eq!(g.im, 0.0);
+                assert!(
+                    (g.re - want).abs() <= tol,
+                    "lag {l}, entry {e} of {entries}: {} vs {want} (tolerance {tol:e})",
+                    g.re
+                );
+            }
+        }
+    }
+}
+
+/// Slot sums on every instruction set are bitwise the plain (one lane) loops', on regular
+/// and gathered lags.
+#[test]
+fn slot_sums_are_the_same_on_every_instruction_set() {
+    let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
+    let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
+    for lags in [&regular, &gathered] {
+        let terms = slot_terms(19, 4);
+        let fast = slot_sums(lags, 19, None, &terms);
+        let plain = slot_sums(lags, 19, Some(pulp::Arch::Scalar), &terms);
+        let bits = |v: &[Vec<Complex64>]| {
+            v.iter()
+                .flatten()
+                .map(|z| (z.re.to_bits(), z.im.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&fast), bits(&plain));
+        assert!(fast.iter().flatten().any(|z| z.re != 0.0));
+    }
+}
+
+#[test]
+fn irregular_lags_take_no_powers() {
+    assert!(Powers::of(&[0.1, 0.1 * std::f64::consts::PI]).is_none());
+    assert!(Powers::of(&[0.0]).is_none());
+    assert!(Powers::of(&[0.1, 100.0]).is_none());
+    assert!(Powers::of(&[0.1, 0.1 + 1e-9]).is_none());
+}
+
+#[test]
+fn a_log_spaced_dcs_grid_takes_powers_of_its_common_step() {
+    let lags = [
+        0.0, 2e-7, 5e-7, 1e-6, 2e-6, 3e-6, 4e-6, 5e-6, 6e-6, 8e-6, 1e-5, 1.5e-5, 2e-5,
+    ];
+    let p = Powers::of(&lags).unwrap();
+    assert!((p.delta - 1e-7).abs() < 1e-20);
+    let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
+    assert_eq!(steps, [2, 5, 10, 20, 30, 40, 50, 60, 80, 100, 150, 200]);
+}
