@@ -241,3 +241,27 @@ fn endpoint_messages_name_the_field_given() {
         assert!(!e.contains("position") && !e.contains("NaN"), "{e}");
     }
 }
+
+#[test]
+fn a_point_sensor_on_its_point_source_refuses_the_mean_naming_sensors() {
+    // A fuzz finding of the 30-minute run (seed 23): the DCS example with its sensor moved onto
+    // its source. The direct field e^(ikr)/r of the speckle mean is infinite at r = 0:
+    // `speckle mean` wrote `inf+NaNi` with exit 0. The commands that write the mean refuse it;
+    // the paths' correlation is finite and renders.
+    let dir = tempfile::tempdir().unwrap();
+    let text = speckle::scene::examples::example("dcs")
+        .unwrap()
+        .replace("position = [-0.5, 0.0, 0.0]", "position = [0.5, 0.0, 0.0]")
+        .replace("paths = 400000", "paths = 2000");
+    let p = write(dir.path(), "same.toml", &text);
+    let p = p.to_str().unwrap();
+    for command in ["mean", "covariance", "fields"] {
+        refused(
+            dir.path(),
+            &[command, p, "-q", "--out", "out"],
+            &["sensors", "sensor 0 lies on source 0", "infinite"],
+        );
+    }
+    let o = speckle(dir.path(), &["g1", p, "-q", "--out", "g1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

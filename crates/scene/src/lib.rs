@@ -474,6 +474,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// [`speckle_endpoints::mean_field`]).
     pub fn mean(&self, pair: Pair) -> Result<Complex64, SceneError> {
         self.check_field_sensors()?;
+        self.check_mean_pair(pair)?;
         Ok(speckle_endpoints::mean_field(
             &self.medium,
             &self.phases,
@@ -481,6 +482,27 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             self.sources[pair.source],
             self.sensors[pair.sensor],
         )?)
+    }
+
+    /// Refuses the mean of a point source and a point sensor at the same place: its direct
+    /// field `e^{ikr} / r` is infinite there (a fuzz finding of issue 27: `speckle mean` wrote
+    /// `inf+NaNi`). Their paths' covariance and intensity are finite.
+    fn check_mean_pair(&self, pair: Pair) -> Result<(), SceneError> {
+        if let (Source::Point { position: p }, Sensor::Point { position: q }) =
+            (self.sources[pair.source], self.sensors[pair.sensor])
+            && p == q
+        {
+            return Err(invalid(
+                "sensors",
+                format!(
+                    "sensor {} lies on source {} at [{}, {}, {}]: the speckle mean of the pair, its \
+                     direct field e^(ikr)/r, is infinite there; move one of them, or render \
+                     without the mean (render.add_mean = false, or not `speckle mean`)",
+                    pair.sensor, pair.source, q.x, q.y, q.z
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// The speckle means of all pairs, in pair order (pairs in parallel).
@@ -521,6 +543,9 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     {
         self.check_field_sensors()?;
         let k = self.wavenumber();
+        for &p in &self.pairs[pairs.clone()] {
+            self.check_mean_pair(p)?;
+        }
         let each: Vec<Option<Complex64>> = self.pairs[pairs]
             .par_iter()
             .map(|&p| {
