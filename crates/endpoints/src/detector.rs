@@ -262,6 +262,16 @@ impl Detector {
         }
     }
 
+    /// The depth of `x` (in the medium) below the detector's face, and its lateral distance
+    /// beyond the disc's rim (0 over the disc): the two legs of [`Detector::distance_bound`].
+    #[inline]
+    pub fn depth_and_offset(&self, x: DVec3) -> (f64, f64) {
+        let off = x - self.center;
+        let depth = off.dot(self.normal);
+        let lateral = (off - depth * self.normal).length();
+        (depth.abs(), (lateral - self.radius).max(0.0))
+    }
+
     /// A lower bound of the distance from `x` (in the medium) to the disc.
     #[inline]
     pub fn distance_bound(&self, x: DVec3) -> f64 {

@@ -47,7 +47,9 @@ use num_complex::Complex64;
 use speckle_endpoints::{Detector, Source};
 use speckle_medium::Medium;
 use speckle_motion::{Motion, MotionModel};
-use speckle_paths::{Emission, Exit, ForkSink, PathRng, Vertex, VertexSink, WeightWindow};
+use speckle_paths::{
+    Emission, Exit, ForkSink, PathRng, TracerConfig, Vertex, VertexSink, WeightWindow,
+};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
 use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
@@ -414,6 +416,11 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
     }
 }
 
+/// Most copies a path splits into at one vertex.
+const MAX_SPLIT: u32 = 8;
+/// Most particles (a path and its copies) of one path.
+const MAX_PARTICLES: u32 = 1024;
+
 /// A weight window's target weight at a point.
 type Target = Box<dyn Fn(DVec3) -> f64 + Sync>;
 
@@ -431,22 +438,120 @@ fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) 
     if !(kappa > 0.0 && kappa.is_finite()) {
         return None;
     }
-    // The importance of x: the sum over detectors of exp(-kappa (d_d(x) - d_d(p))), each
-    // detector's term 1 at the source, so that every detector draws its share of the copies
-    // whatever its distance.
-    let detectors: Vec<(Detector, f64)> = scene
+    // The importance of x for detector d: the diffuse reflectance of the dipole model (Farrell
+    // et al. 1992) at the disc's nearest point from an isotropic source at x, over that from
+    // the source (1 at the source, so that every detector draws copies in proportion to how
+    // much farther it is). A photon at depth z is placed one transport length deeper (the
+    // model's source depth), the image beyond the extrapolated boundary 2 z_b above.
+    let transport = 1.0 / (mu_a + sigma_s * (1.0 - g));
+    let z_b = 2.0 / 3.0 * transport;
+    // The reflectance as (r1, R e^{kappa r1}), so that ratios keep their exponents apart
+    // (centimetres apart they underflow separately).
+    let reflectance = move |d: &Detector, x: DVec3| {
+        let (depth, rho) = d.depth_and_offset(x);
+        let z1 = depth + transport;
+        let z2 = z1 + 2.0 * z_b;
+        let r1 = rho.hypot(z1);
+        let term = |z: f64| {
+            let r = rho.hypot(z);
+            z * (kappa + 1.0 / r) * (-kappa * (r - r1)).exp() / (r * r)
+        };
+        (r1, term(z1) + term(z2))
+    };
+    let detectors: Vec<(Detector, (f64, f64))> = scene
         .detectors()
         .iter()
-        .map(|d| (*d, d.distance_bound(p)))
+        .map(|d| (*d, reflectance(d, p)))
         .collect();
     let w0 = 4.0 * std::f64::consts::PI * m.albedo(p);
     Some(Box::new(move |x| {
         let importance: f64 = detectors
             .iter()
-            .map(|(d, d0)| (-kappa * (d.distance_bound(x) - d0)).exp())
+            .map(|(d, (r0, f0))| {
+                let (r, f) = reflectance(d, x);
+                f / f0 * (-kappa * (r - r0)).exp()
+            })
             .sum();
         w0 / importance
     }))
+}
+
+/// Paths of the pilot of [`detector_vertices_per_path`].
+pub const PILOT_PATHS: u64 = 256;
+
+/// A sink that keeps nothing: the pilot counts vertices only.
+struct NullSink;
+
+impl VertexSink for NullSink {
+    fn first(&mut self, _x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {}
+    fn vertex(&mut self, _v: &Vertex, _rng: &mut PathRng) {}
+}
+
+impl ForkSink for NullSink {
+    type Saved = ();
+    fn save(&self) {}
+    fn restore(&mut self, _saved: &()) {}
+}
+
+/// The vertices per path of a detector render of `scene` with the default techniques,
+/// counting every copy of a split path: [`PILOT_PATHS`] paths traced at `seed` on one thread.
+/// The cost estimate (`speckle_scene::cost`) cannot know how far a weight window multiplies
+/// the paths (the head of `speckle example head`: five times the vertices of its unsplit paths,
+/// which its layers and refractive faces already make longer than a homogeneous estimate), so
+/// a render of detectors is costed with this count. `None` when the scene has no detectors or
+/// no source a window applies to.
+pub fn detector_vertices_per_path<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    sampling: TracerConfig,
+    seed: u64,
+) -> Result<Option<f64>, EstimatorError> {
+    if !scene.has_detectors() {
+        return Ok(None);
+    }
+    let tracer = scene
+        .detector_tracer(sampling)
+        .map_err(|e| EstimatorError::InvalidInput {
+            field: "render".into(),
+            reason: e.to_string(),
+        })?;
+    // Path n from source n mod S, as in the render.
+    let emissions: Vec<Emission> = scene
+        .sources()
+        .iter()
+        .filter_map(|s| match *s {
+            Source::Point { position } => Some(Emission::Point(position)),
+            Source::PlaneWave { direction } => Some(Emission::Plane(direction)),
+            Source::GaussianBeam(_) => None,
+        })
+        .collect();
+    if emissions.is_empty() {
+        return Ok(None);
+    }
+    let targets: Vec<Option<Target>> = emissions
+        .iter()
+        .map(|e| match *e {
+            Emission::Point(p) => splitting_target(scene, p),
+            _ => None,
+        })
+        .collect();
+    let mut total = 0.0;
+    for n in 0..PILOT_PATHS {
+        let i = (n % emissions.len() as u64) as usize;
+        let mut rng = PathRng::new(seed, n);
+        let v = match &targets[i] {
+            Some(target) => {
+                let window = WeightWindow {
+                    target: target.as_ref(),
+                    max_split: MAX_SPLIT,
+                    max_particles: MAX_PARTICLES,
+                };
+                tracer.trace_emitted_split(emissions[i], &window, &mut rng, &mut NullSink)
+            }
+            None => tracer.trace_emitted(emissions[i], &mut rng, &mut NullSink),
+        };
+        total += f64::from(v);
+    }
+    Ok(Some(total / PILOT_PATHS as f64))
 }
 
 /// Which techniques estimate a detector's reading.
@@ -461,10 +566,11 @@ pub enum DetectorTechniques {
     /// In addition, paths from point sources split where they approach a detector and are
     /// rouletted where they move away ([`speckle_paths::Tracer::trace_emitted_split`]), by a
     /// weight window whose target is the emitted weight over the importance
-    /// `sum_d exp(-kappa (d_d(x) - d_d(p)))`, `d_d` the distance to disc `d`, `p` the source and
-    /// `kappa` the diffusion attenuation `sqrt(3 mu_a (mu_a + mu_s (1 - g)))` at the source
-    /// (each detector's term 1 at the source: every detector draws copies in proportion to how
-    /// much farther it is). The default.
+    /// `sum_d R_d(x) / R_d(p)`, `p` the source and `R_d(x)` the dipole model's diffuse
+    /// reflectance at disc `d` from an isotropic source at `x` (Farrell et al. 1992; the
+    /// formula in docs/conventions.md), with the diffusion attenuation `kappa = sqrt(3 mu_a
+    /// (mu_a + mu_s (1 - g)))` at the source (each detector's term 1 at the source: every
+    /// detector draws copies in proportion to how much farther it is). The default.
     #[default]
     ExitNextEventAndSplitting,
 }
@@ -660,8 +766,8 @@ where
             Some(target) => {
                 let window = WeightWindow {
                     target: target.as_ref(),
-                    max_split: 8,
-                    max_particles: 1024,
+                    max_split: MAX_SPLIT,
+                    max_particles: MAX_PARTICLES,
                 };
                 tracer.trace_emitted_split(emissions[sink.source], &window, &mut rng, sink)
             }

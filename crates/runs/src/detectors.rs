@@ -3,7 +3,8 @@
 
 use crate::RunError;
 use speckle_estimators::{
-    CovarianceEstimate, CovarianceOptions, DetectorEstimate, EstimatorError, render_detectors,
+    CovarianceEstimate, CovarianceOptions, DetectorEstimate, EstimatorError,
+    detector_vertices_per_path, render_detectors,
 };
 use speckle_motion::MotionModel;
 use speckle_scene::Problem;
@@ -29,4 +30,13 @@ pub(crate) fn readings(
 ) -> Result<CovarianceEstimate, RunError> {
     let est = render(p, None, &crate::covariance_options(p), progress)?;
     Ok(est.readings().expect("a static render has one lag"))
+}
+
+/// The vertices per path of a render of `p`'s detectors, counted by a pilot of a few hundred
+/// paths (`speckle_estimators::detector_vertices_per_path`) for the cost estimate; `None` for a
+/// scene without detectors (or a pilot that fails: the render reports why).
+pub fn measured_vertices(p: &Problem) -> Option<f64> {
+    detector_vertices_per_path(&p.scene, p.render.sampling, p.render.seed)
+        .ok()
+        .flatten()
 }

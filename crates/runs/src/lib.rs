@@ -21,7 +21,7 @@
 #![deny(missing_docs)]
 
 pub mod checksum;
-mod detectors;
+pub mod detectors;
 mod file;
 mod finite;
 pub mod fit;
@@ -280,7 +280,9 @@ pub fn estimate(
     let in_doc = |e| RunError::Load(p.in_document(e));
     let e = match kind {
         Kind::Covariance => p.estimate(Command::Covariance, threads).map_err(in_doc)?,
-        Kind::Intensity => p.estimate(Command::Intensity, threads).map_err(in_doc)?,
+        Kind::Intensity => p
+            .estimate_with(Command::Intensity, threads, detectors::measured_vertices(p))
+            .map_err(in_doc)?,
         Kind::Fields => p.estimate(Command::Fields, threads).map_err(in_doc)?,
         Kind::Wave => {
             let scene = p.box_scene().map_err(in_doc)?;

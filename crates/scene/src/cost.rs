@@ -63,6 +63,10 @@ const MERGE_S: f64 = 5e-9;
 /// and their merge into the moments (11 s for 128 batches of `J = 2 000 000` on two threads of
 /// the reference machine).
 const DIAGONAL_MERGE_S: f64 = 4.4e-8;
+/// A detector at a vertex of a detector render: the splitting importance (the dipole model's
+/// reflectance, two exponentials), the exit test and the next-event check (measured on
+/// `tissue_fibre.toml`, one detector, and `head.toml`, four).
+const DETECTOR_S: f64 = 6e-8;
 /// What a `J x J` render does after its paths, per entry and on one thread whatever the
 /// threads: the standard errors, the encoding and synced writes of four arrays, the PNG (3-6 s
 /// for `J = 4097`, with the page cache's write-back of the previous files).
@@ -291,9 +295,9 @@ fn regions(m: &AnyMedium) -> Vec<(Vec<f64>, f64)> {
                     albedo: 0.0,
                 });
                 b.count += 1;
-                for a in 0..3 {
-                    b.lo[a] = b.lo[a].min(idx[a]);
-                    b.hi[a] = b.hi[a].max(idx[a]);
+                for (a, &i) in idx.iter().enumerate() {
+                    b.lo[a] = b.lo[a].min(i);
+                    b.hi[a] = b.hi[a].max(i);
                 }
                 b.sigma_t = b.sigma_t.max(vt);
                 b.albedo = b.albedo.max(vs / vt);
@@ -493,6 +497,18 @@ impl Problem {
     /// the paths first (errors name the field), then estimates memory and time. The guard
     /// ([`guard`]) decides whether to go ahead.
     pub fn estimate(&self, command: Command, threads: usize) -> Result<Estimate, SceneError> {
+        self.estimate_with(command, threads, None)
+    }
+
+    /// [`Problem::estimate`] with the vertices per path measured by a pilot where the
+    /// expected ones are not known (detectors' weight windows multiply the paths:
+    /// `speckle_estimators::detector_vertices_per_path`); `None`: the expected ones.
+    pub fn estimate_with(
+        &self,
+        command: Command,
+        threads: usize,
+        measured_vertices: Option<f64>,
+    ) -> Result<Estimate, SceneError> {
         // Every command here is a Monte Carlo render (or the mean field): refuse what the
         // estimators would refuse, naming the endpoint. They all connect Gaussian beams (near
         // field) whose amplitudes are vMF lobes; the mean has its own closed form.
@@ -524,7 +540,8 @@ impl Problem {
                 | Command::Tracking
         );
         let vertices = if traced {
-            self.check_path_length()?
+            let expected = self.check_path_length()?;
+            measured_vertices.unwrap_or(expected)
         } else {
             0.0
         };
@@ -555,7 +572,8 @@ impl Problem {
                     + 24.0 * j;
                 // Per vertex, beyond the connections, the two parts' products added into
                 // the batch's sums (a random walk over `J` doubles, memory bound at large J).
-                let per_path = vertices * (VERTEX_S + per_vertex_connect + 5.0 * j * PAIR_S);
+                let per_path = vertices
+                    * (VERTEX_S + per_vertex_connect + 5.0 * j * PAIR_S + self.detector_seconds());
                 (bytes, "sensors", per_path * r.paths as f64, "render.paths")
             }
             Command::G1 => {
@@ -570,7 +588,7 @@ impl Problem {
                 (
                     bytes,
                     "motion.lags",
-                    vertices * per_vertex * r.paths as f64,
+                    vertices * (per_vertex + self.detector_seconds()) * r.paths as f64,
                     "render.paths",
                 )
             }
@@ -634,6 +652,16 @@ impl Problem {
             time_field: time_field.to_string(),
             vertices_per_path: vertices,
         })
+    }
+
+    /// Seconds per vertex that detectors add (each: the weight window's importance, the exit
+    /// test and the next-event check).
+    fn detector_seconds(&self) -> f64 {
+        if self.scene.has_detectors() {
+            self.n_sensors() as f64 * DETECTOR_S
+        } else {
+            0.0
+        }
     }
 
     /// Entries merged into the moments, `entries` per batch: the render is cut into about

@@ -24,15 +24,18 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     p.check_path_length().map_err(in_scene(&p))?;
     say!("{}", speckle::runs::summary(&p));
     let t = threads();
-    let commands = [
+    let mut commands = vec![
         ("covariance", Command::Covariance),
         ("intensity", Command::Intensity),
         ("single", Command::Single),
         ("fields", Command::Fields),
         ("mean", Command::Mean),
     ];
+    if p.motion.is_some() {
+        commands.push(("g1", Command::G1));
+    }
     for (name, command) in commands {
-        let text = match p.estimate(command, t) {
+        let text = match super::estimate(&p, command) {
             Ok(e) => e.describe(),
             Err(e) => format!("refused: {e}"),
         };

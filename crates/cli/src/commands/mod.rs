@@ -262,9 +262,14 @@ pub fn plan_render(p: &Problem, kind: Kind, run: RunOptions) -> anyhow::Result<S
     plan(p, Ok(e), run)
 }
 
-/// The estimate of `command` on `p` with the threads in use.
+/// The estimate of `command` on `p` with the threads in use (for a render of detectors, with
+/// the vertices per path of a pilot: `speckle::runs::detectors::measured_vertices`).
 pub fn estimate(p: &Problem, command: Command) -> Result<Estimate, speckle::scene::SceneError> {
-    p.estimate(command, threads())
+    let measured = match command {
+        Command::Intensity | Command::G1 => speckle::runs::detectors::measured_vertices(p),
+        _ => None,
+    };
+    p.estimate_with(command, threads(), measured)
 }
 
 /// Checks the output directory `dir` before any work and returns an empty staging area for it.
