@@ -343,7 +343,7 @@ pub mod testing {
         (2.0 * PI * h / 3.0 * m0, 2.0 * PI * h / 3.0 * m1)
     }
 
-    pub use speckle_stats::rng::uniform_stream;
+    pub use speckle_rng::uniform_stream;
 
     /// `sqrt(n) * D`, the Kolmogorov-Smirnov distance of the samples `xs` from the CDF `f`.
     pub fn ks_distance(mut xs: Vec<f64>, f: impl Fn(f64) -> f64) -> f64 {

@@ -21,7 +21,7 @@ pub mod jackknife;
 mod matrix;
 mod moments;
 mod reduction;
-pub mod rng;
+pub use speckle_rng as rng;
 pub mod shard;
 
 pub use block::{BLOCK_COLUMNS, GeneralBlock, HermitianBlock, rank1_general, rank1_upper};

@@ -4,7 +4,7 @@
 use crate::VmfError;
 use crate::algebra::{inverse_mean_resultant_length, ln_vmf_normaliser};
 use crate::mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfMixture};
-use speckle_stats::rng::{GOLDEN_GAMMA, splitmix64};
+use speckle_rng::{GOLDEN_GAMMA, splitmix64};
 use std::f64::consts::PI;
 
 /// Options of [`fit_amplitude`] and [`fit_amplitude_fixed`]. Build with `Default` and struct

@@ -21,7 +21,8 @@
 //!
 //! Design decisions:
 //!
-//! - **Below the phase functions.** This crate depends on no other crate of the workspace.
+//! - **Below the phase functions.** Of the workspace this crate depends only on `speckle-rng`
+//!   (the seeds of its fits), a crate with no dependencies.
 //!   `speckle-phase` depends on it: it implements its `PhaseFunction` trait for [`VmfMixture`]
 //!   by delegating to the inherent methods, renders mixtures directly as `Phase::Vmf` (exact
 //!   sampler, closed-form mean cosine, no table), and wraps the fit for any phase function

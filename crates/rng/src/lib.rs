@@ -1,5 +1,9 @@
 //! Counter-based random streams (Philox4x32-10) and the one way every render derives them.
 //!
+//! Its own crate, with no dependencies, so that the building blocks an embedder picks first
+//! (`speckle-vmf`, `speckle-phase`) need no more than these streams; `speckle_stats::rng`
+//! re-exports it.
+//!
 //! # Stream layout (value-stable; a change is a breaking change, see `CHANGELOG.md`)
 //!
 //! Every random number of a render comes from [`PathRng::new`]`(key, stream)`:
@@ -25,7 +29,7 @@
 /// not depend on the thread that runs it. Portable and value-stable across platforms.
 ///
 /// ```
-/// use speckle_stats::PathRng;
+/// use speckle_rng::PathRng;
 /// let mut a = PathRng::new(7, 42);
 /// let mut b = PathRng::new(7, 42);
 /// assert_eq!(a.next_f64(), b.next_f64());
@@ -83,7 +87,7 @@ pub fn splitmix64(mut z: u64) -> u64 {
 /// unrelated keys.
 ///
 /// ```
-/// use speckle_stats::rng::derive_seed;
+/// use speckle_rng::derive_seed;
 /// assert_ne!(derive_seed(1, 0), derive_seed(1, 1));
 /// assert_ne!(derive_seed(1, 0), derive_seed(2, 0));
 /// ```
