@@ -257,7 +257,9 @@ fn absorption_and_scattering_are_recovered_from_intensities_at_four_separations(
     // the scene's coefficients (perturbation Monte Carlo) and must find the truth within its
     // 99% intervals (measurement and Monte Carlo parts: both are renders), from each of two
     // renders (the two coefficients are strongly correlated in four intensities: their
-    // standard errors are 5-20%).
+    // standard errors are 5-20%). 600 000 paths per render: with the dipole importance the
+    // weight window registers more paths, and a million would keep over 2 GiB of records
+    // (300 000 leave so much Monte Carlo noise that a fit wanders where re-weighting fails).
     let (s, a) = (22.0, 0.13);
     let truth = fibres(s, a, 7, 2_000_000);
     let readings = speckle::runs::intensity(&truth, &speckle::estimators::NoProgress).unwrap();
@@ -274,7 +276,7 @@ fn absorption_and_scattering_are_recovered_from_intensities_at_four_separations(
         stderr: Some(e),
     };
     for seed in 1..=2 {
-        let p = fibres(20.0, 0.1, seed, 1_000_000);
+        let p = fibres(20.0, 0.1, seed, 600_000);
         let mut settings = p.fit.clone().unwrap();
         settings.level = 0.99;
         let records = records(&p, &[0, 1, 2, 3], &speckle::estimators::NoProgress).unwrap();
