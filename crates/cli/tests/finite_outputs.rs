@@ -264,4 +264,16 @@ fn a_point_sensor_on_its_point_source_refuses_the_mean_naming_sensors() {
     }
     let o = speckle(dir.path(), &["g1", p, "-q", "--out", "g1"]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // And 5e-324 apart (seed 24): 1 / r overflows.
+    let near = text.replace(
+        "position = [0.5, 0.0, 0.0]\n\n[[sensors]]",
+        "position = [0.5, 0.0, 5e-324]\n\n[[sensors]]",
+    );
+    assert_ne!(near, text);
+    let p = write(dir.path(), "near.toml", &near);
+    refused(
+        dir.path(),
+        &["mean", p.to_str().unwrap(), "-q", "--out", "out"],
+        &["sensors", "sensor 0 lies on source 0", "infinite"],
+    );
 }

@@ -108,6 +108,10 @@ const DETECTORS_ONLY: &str = "the sensors are detectors, which integrate intensi
      not field covariances, fields, means or wave solutions; use point, far-field or Gaussian \
      sensors for those";
 
+/// Point sources and point sensors closer than this have no speckle mean (its `1 / r` would
+/// be above 1e150, its square near overflow).
+pub const MIN_POINT_DISTANCE: f64 = 1e-150;
+
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> SceneError {
     SceneError::InvalidInput {
         field: field.into(),
@@ -484,20 +488,22 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         )?)
     }
 
-    /// Refuses the mean of a point source and a point sensor at the same place: its direct
-    /// field `e^{ikr} / r` is infinite there (a fuzz finding of issue 27: `speckle mean` wrote
-    /// `inf+NaNi`). Their paths' covariance and intensity are finite.
+    /// Refuses the mean of a point source and a point sensor at the same place (closer than
+    /// [`MIN_POINT_DISTANCE`]): its direct field `e^{ikr} / r` is infinite there, or so large
+    /// that its square overflows (fuzz findings of issue 27: `speckle mean` wrote `inf+NaNi`
+    /// for points 0 and 5e-324 apart). Their paths' covariance and intensity are finite.
     fn check_mean_pair(&self, pair: Pair) -> Result<(), SceneError> {
         if let (Source::Point { position: p }, Sensor::Point { position: q }) =
             (self.sources[pair.source], self.sensors[pair.sensor])
-            && p == q
+            && (q - p).length() <= MIN_POINT_DISTANCE
         {
             return Err(invalid(
                 "sensors",
                 format!(
-                    "sensor {} lies on source {} at [{}, {}, {}]: the speckle mean of the pair, its \
-                     direct field e^(ikr)/r, is infinite there; move one of them, or render \
-                     without the mean (render.add_mean = false, or not `speckle mean`)",
+                    "sensor {} lies on source {} at [{}, {}, {}] (closer than {MIN_POINT_DISTANCE:e}): \
+                     the speckle mean of the pair, its direct field e^(ikr)/r, is infinite \
+                     there; move one of them, or render without the mean (render.add_mean = \
+                     false, or not `speckle mean`)",
                     pair.sensor, pair.source, q.x, q.y, q.z
                 ),
             ));
