@@ -8,7 +8,7 @@
 //! machine cannot hold them to absolute times. What it can hold is their consistency: the
 //! ratio of measured to estimated time must be the same, within a factor 3 either way, on every
 //! reference scene (a missing or misjudged part of a command's cost, like the 7x and 23x of the
-//! issue, breaks it whatever the machine). The ratios themselves are printed (about 0.6-1.5 on
+//! issue, breaks it whatever the machine). The ratios themselves are printed (about 0.7-1.9 on
 //! the reference machine). All in one test, so that no other test of this file runs beside it.
 
 use speckle::scene::Overrides;
@@ -108,7 +108,10 @@ fn time_estimates_hold_within_a_factor_three_of_one_another() {
     ];
     let mut ratios = Vec::new();
     for (what, scene, command, cost) in &cases {
-        let (took, estimate) = measure(dir.path(), scene, command, *cost);
+        // The shorter of two runs: a run's synced writes can wait for the write-back of
+        // earlier files (one run of the batch-merge case took 3x its time so).
+        let (first, estimate) = measure(dir.path(), scene, command, *cost);
+        let took = first.min(measure(dir.path(), scene, command, *cost).0);
         println!("{what} ({command}): measured {took:.2} s, estimated {estimate:.2} s");
         ratios.push((*what, took / estimate));
     }
@@ -122,4 +125,38 @@ fn time_estimates_hold_within_a_factor_three_of_one_another() {
             "{what}: measured / estimated {r:.2} against the median {median:.2}: {ratios:?}"
         );
     }
+}
+
+#[test]
+fn the_pilot_of_endless_paths_stops_at_its_budget() {
+    // The pilot that counts a detector render's vertices traces at most
+    // `speckle_estimators::PILOT_VERTICES`: on the fuzz corpus's scalp of 4.3e9 /cm (paths of
+    // about 1e10 vertices) `speckle check` must still end promptly (a hang before the budget;
+    // 1 s here) and cost `g1` by the expected path length: days.
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../fuzz/corpus/finding_dense_scalp.toml"
+    );
+    let mut child = bin()
+        .args(["check", scene])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() > 120 {
+            child.kill().unwrap();
+            panic!("speckle check did not end within 120 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let line = out
+        .lines()
+        .find(|l| l.contains("cost of g1"))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(line.contains("days"), "{line}");
 }
