@@ -462,6 +462,8 @@ fn exercise(p: &Problem) -> Result<(), Finding> {
             refused(e)?;
         }
     }
+    // The commands cost detector renders with a pilot of their paths (bounded, so never a hang).
+    let _ = speckle::runs::detectors::measured_vertices(p);
     if let Some(m) = &p.motion {
         match p.estimate(Command::G1, 1) {
             Ok(e) if e.seconds < 0.2 && e.bytes < 5e8 => {
