@@ -454,11 +454,10 @@ fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) 
         let z1 = depth + 0.75 * transport;
         let z2 = z1 + 2.0 * z_b;
         let r1 = rho.hypot(z1);
-        let term = |z: f64| {
-            let r = rho.hypot(z);
-            z * (kappa + 1.0 / r) * (-kappa * (r - r1)).exp() / (r * r)
-        };
-        (r1, term(z1) + term(z2))
+        let r2 = rho.hypot(z2);
+        let near = z1 * (kappa + 1.0 / r1) / (r1 * r1);
+        let image = z2 * (kappa + 1.0 / r2) * (-kappa * (r2 - r1)).exp() / (r2 * r2);
+        (r1, near + image)
     };
     let detectors: Vec<(Detector, (f64, f64))> = scene
         .detectors()
@@ -476,6 +475,64 @@ fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) 
             .sum();
         w0 / importance
     }))
+}
+
+/// The emissions of a detector scene's sources, in order: point sources and plane waves
+/// (Gaussian beams are refused naming `sources`).
+fn emissions<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+) -> Result<Vec<Emission>, EstimatorError> {
+    scene
+        .sources()
+        .iter()
+        .map(|s| match *s {
+            Source::Point { position } => Ok(Emission::Point(position)),
+            Source::PlaneWave { direction } => Ok(Emission::Plane(direction)),
+            Source::GaussianBeam(_) => Err(EstimatorError::InvalidInput {
+                field: "sources".into(),
+                reason: "detectors read light from point sources and plane waves".into(),
+            }),
+        })
+        .collect()
+}
+
+/// The weight window's target of each emission under `techniques` (point sources with
+/// splitting; `None`: no window).
+fn windows<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    emissions: &[Emission],
+    techniques: DetectorTechniques,
+) -> Vec<Option<Target>> {
+    emissions
+        .iter()
+        .map(|e| match (*e, techniques) {
+            (Emission::Point(p), DetectorTechniques::ExitNextEventAndSplitting) => {
+                splitting_target(scene, p)
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Traces one path of light from `emission`, split by the window of `target` when there is one.
+fn trace_path<M: Medium, P: PhaseFunction, S: ForkSink>(
+    tracer: &speckle_paths::Tracer<'_, M, P>,
+    emission: Emission,
+    target: &Option<Target>,
+    rng: &mut PathRng,
+    sink: &mut S,
+) {
+    match target {
+        Some(target) => {
+            let window = WeightWindow {
+                target: target.as_ref(),
+                max_split: MAX_SPLIT,
+                max_particles: MAX_PARTICLES,
+            };
+            tracer.trace_emitted_split(emission, &window, rng, sink)
+        }
+        None => tracer.trace_emitted(emission, rng, sink),
+    };
 }
 
 /// Paths of the pilot of [`detector_vertices_per_path`].
@@ -530,41 +587,19 @@ pub fn detector_vertices_per_path<M: Medium, P: PhaseFunction>(
             field: "render".into(),
             reason: e.to_string(),
         })?;
-    // Path n from source n mod S, as in the render.
-    let emissions: Vec<Emission> = scene
-        .sources()
-        .iter()
-        .filter_map(|s| match *s {
-            Source::Point { position } => Some(Emission::Point(position)),
-            Source::PlaneWave { direction } => Some(Emission::Plane(direction)),
-            Source::GaussianBeam(_) => None,
-        })
-        .collect();
+    // Path n from source n mod S, as in the render (which reports a refused source).
+    let Ok(emissions) = emissions(scene) else {
+        return Ok(None);
+    };
     if emissions.is_empty() {
         return Ok(None);
     }
-    let targets: Vec<Option<Target>> = emissions
-        .iter()
-        .map(|e| match *e {
-            Emission::Point(p) => splitting_target(scene, p),
-            _ => None,
-        })
-        .collect();
+    let targets = windows(scene, &emissions, DetectorTechniques::default());
     let mut sink = CountingSink { vertices: 0 };
     for n in 0..PILOT_PATHS {
         let i = (n % emissions.len() as u64) as usize;
         let mut rng = PathRng::new(seed, n);
-        match &targets[i] {
-            Some(target) => {
-                let window = WeightWindow {
-                    target: target.as_ref(),
-                    max_split: MAX_SPLIT,
-                    max_particles: MAX_PARTICLES,
-                };
-                tracer.trace_emitted_split(emissions[i], &window, &mut rng, &mut sink)
-            }
-            None => tracer.trace_emitted(emissions[i], &mut rng, &mut sink),
-        };
+        trace_path(&tracer, emissions[i], &targets[i], &mut rng, &mut sink);
         if !sink.keep_going() {
             return Ok(None);
         }
@@ -717,28 +752,9 @@ where
     let (j, nl) = (scene.len(), lags.len());
     let k = scene.wavenumber();
     let registered = std::sync::atomic::AtomicU64::new(0);
-    let emissions: Vec<Emission> = scene
-        .sources()
-        .iter()
-        .map(|s| match *s {
-            Source::Point { position } => Ok(Emission::Point(position)),
-            Source::PlaneWave { direction } => Ok(Emission::Plane(direction)),
-            Source::GaussianBeam(_) => Err(invalid(
-                "sources",
-                "detectors read light from point sources and plane waves".into(),
-            )),
-        })
-        .collect::<Result<_, _>>()?;
+    let emissions = emissions(scene)?;
     let n_sources = emissions.len() as u64;
-    let windows: Vec<Option<Target>> = emissions
-        .iter()
-        .map(|e| match (*e, techniques) {
-            (Emission::Point(p), DetectorTechniques::ExitNextEventAndSplitting) => {
-                splitting_target(scene, p)
-            }
-            _ => None,
-        })
-        .collect();
+    let windows = windows(scene, &emissions, techniques);
     let nm = scene.medium().materials();
     let record = keep.is_some();
     let keep = keep.unwrap_or_default();
@@ -780,17 +796,13 @@ where
         sink.rng = PathRng::new(nee_seed, n);
         // Path n comes from source n mod S (each source a 1/S share of the paths).
         sink.source = (n % n_sources) as usize;
-        match &windows[sink.source] {
-            Some(target) => {
-                let window = WeightWindow {
-                    target: target.as_ref(),
-                    max_split: MAX_SPLIT,
-                    max_particles: MAX_PARTICLES,
-                };
-                tracer.trace_emitted_split(emissions[sink.source], &window, &mut rng, sink)
-            }
-            None => tracer.trace_emitted(emissions[sink.source], &mut rng, sink),
-        };
+        trace_path(
+            &tracer,
+            emissions[sink.source],
+            &windows[sink.source],
+            &mut rng,
+            sink,
+        );
         if sink.registered {
             // Part 0: single scattering, part 1: multiple.
             sums[usize::from(!sink.single)].push_values(&sink.values, Complex64::ONE);
