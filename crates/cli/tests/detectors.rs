@@ -204,3 +204,91 @@ fn refractive_faces_render_with_detectors_and_are_refused_by_field_renders() {
         );
     }
 }
+
+/// The scene with its point source replaced by a fibre source of keys `fibre`.
+fn fibre_source(fibre: &str, sensor: Option<&str>) -> String {
+    let s = scene(FIBRE, "").replace(
+        "type = \"point\"\nposition = [-0.1, 0.0, 0.0]",
+        &format!("type = \"fibre\"\n{fibre}"),
+    );
+    match sensor {
+        Some(sensor) => s.replace(
+            "type = \"detector\"\nposition = [0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5",
+            sensor,
+        ),
+        None => s,
+    }
+}
+
+#[test]
+fn fibre_sources_render_with_detectors_and_bad_ones_exit_2_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = "position = [-0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.4";
+    let s = write(dir.path(), "f.toml", &fibre_source(good, None));
+    let o = speckle(
+        dir.path(),
+        &["g1", s.to_str().unwrap(), "--out", "out", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c = npy_f64(&dir.path().join("out/f.correlation.npy"));
+    assert!(c[0] > 0.0 && c[0].is_finite() && c[4] < c[0], "{c:?}");
+    // The sidecar's tables describe the fibre (kind 5: centre, radius, aperture) and the
+    // detector (kind 4).
+    let src = npy_f64(&dir.path().join("out/f.g1.sources.npy"));
+    assert_eq!(src, [0.0, 5.0, -0.1, 0.0, 0.0, 0.05, 0.4]);
+    let sen = npy_f64(&dir.path().join("out/f.g1.sensors.npy"));
+    assert_eq!(sen, [0.0, 4.0, 0.1, 0.0, 0.0, 0.05, 0.5]);
+    let cases = [
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.0",
+            "sources[0].radius",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = nan",
+            "sources[0].radius",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.3]\nradius = 0.05",
+            "sources[0].position",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 1.5",
+            "sources[0].numerical_aperture",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = -1",
+            "sources[0].numerical_aperture",
+        ),
+        // Pointing out of the medium, and a cone that crosses the face.
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.05\naxis = [0.0, 0.0, -1.0]",
+            "sources[0].axis",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5\naxis = [1.0, 0.0, 0.2]",
+            "sources[0].axis",
+        ),
+        (
+            "position = [-0.1, 0.0, 0.0]\nradius = 0.05\ncolour = 1",
+            "colour",
+        ),
+    ];
+    for (fibre, field) in cases {
+        let s = write(dir.path(), "bad.toml", &fibre_source(fibre, None));
+        let o = speckle(dir.path(), &["g1", s.to_str().unwrap(), "-q"]);
+        assert_eq!(o.status.code(), Some(2), "{fibre}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(field),
+            "{fibre}: expected {field} in {}",
+            stderr(&o)
+        );
+    }
+    // A fibre source with a point sensor: it has no field.
+    let point = fibre_source(good, Some("type = \"point\"\nposition = [0.1, 0.0, 0.0]"));
+    let s = write(dir.path(), "p.toml", &point);
+    for cmd in ["g1", "intensity", "covariance"] {
+        let o = speckle(dir.path(), &[cmd, s.to_str().unwrap(), "-q"]);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {}", stderr(&o));
+        assert!(stderr(&o).contains("sources[0]"), "{cmd}: {}", stderr(&o));
+    }
+}

@@ -194,6 +194,59 @@ impl Detector {
         })
     }
 
+    /// A fibre *source* of `radius` centred at `center` on a face of `medium`'s box: the same
+    /// disc and aperture as a detector, emitting (unit power, uniform radiance) along `axis`
+    /// into the medium (the face's inward normal when `None`) instead of collecting. The
+    /// returned detector's [`Detector::axis`] is the reverse of the emission axis (a fibre is
+    /// the same disc and cone whichever way the light goes), its weighting [`Weighting::Flux`].
+    /// The cone must lie within the face's inward hemisphere (`axis . inward >= NA / n`): an
+    /// error names `field.axis` otherwise. Errors name `field` and its keys.
+    pub fn fibre_source<M: Medium>(
+        field: &str,
+        medium: &M,
+        center: DVec3,
+        radius: f64,
+        numerical_aperture: f64,
+        axis: Option<DVec3>,
+        outside_index: f64,
+    ) -> Result<Self, EndpointError> {
+        let mut d = Self::new(
+            field,
+            medium,
+            center,
+            radius,
+            numerical_aperture,
+            None,
+            outside_index,
+            Weighting::Flux,
+        )?;
+        if let Some(a) = axis {
+            let n = a.length();
+            if !(a.is_finite() && n > 0.0) {
+                return Err(check::invalid(
+                    format!("{field}.axis"),
+                    format!("must be a finite non-zero vector (got {a})"),
+                ));
+            }
+            let a = a / n;
+            let sin_max = numerical_aperture / outside_index;
+            if -a.dot(d.normal) < sin_max {
+                return Err(check::invalid(
+                    format!("{field}.axis"),
+                    format!(
+                        "a fibre source's cone (half-angle asin({sin_max})) about its axis {a} \
+                         must lie within the medium's side of its face (inward normal {}): the \
+                         axis must point into the medium within {:.4} degrees of the normal",
+                        -d.normal,
+                        sin_max.acos().to_degrees()
+                    ),
+                ));
+            }
+            d.axis = -a;
+        }
+        Ok(d)
+    }
+
     /// The centre of the disc (on the face).
     pub fn center(&self) -> DVec3 {
         self.center

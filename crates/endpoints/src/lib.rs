@@ -100,6 +100,17 @@ pub enum Source {
     GaussianBeam(GaussianBeam),
 }
 
+/// Where the light of a scene of detectors comes from: a field source, or a fibre source (a
+/// disc and aperture emitting incoherent light of uniform radiance,
+/// [`Detector::fibre_source`]), which only detectors read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Emitter {
+    /// A point source, plane wave or Gaussian beam.
+    Field(Source),
+    /// A fibre source: the disc and cone of a detector, the light travelling the other way.
+    Fibre(Detector),
+}
+
 /// A sensor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Sensor {

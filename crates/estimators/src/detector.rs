@@ -9,7 +9,10 @@
 //!
 //! Light tracing in the absolute units of `docs/conventions.md`: a point source emits the power
 //! `4 pi` (unit radiant intensity, `e^{ikr}/r`), a plane wave of unit intensity the power
-//! `|d . n| |face|` into each face it lights. A path carries that power to its first collision
+//! `|d . n| |face|` into each face it lights, a fibre source unit power (outside its face, with
+//! uniform radiance over its disc and cone: [`speckle_paths::Disc`]), so that a fibre-to-fibre
+//! reading is the detected irradiance per unit launched power and obeys reciprocity,
+//! `R_sd sin^2(theta_s) = R_ds sin^2(theta_d)` (`sin theta = NA / n` of each fibre). A path carries that power to its first collision
 //! `x1`, where it is multiplied by the albedo (no roulette at `x1`), and keeps it (flights,
 //! roulette on the albedo and phase-function directions are sampled with the densities of the
 //! radiative transfer throughput). With `S` sources, path `n` comes from source `n mod S` with
@@ -44,11 +47,11 @@ use crate::{
 };
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_endpoints::{Detector, Source};
+use speckle_endpoints::{Detector, Emitter, Source};
 use speckle_medium::Medium;
 use speckle_motion::{Motion, MotionModel};
 use speckle_paths::{
-    Emission, Exit, ForkSink, PathRng, TracerConfig, Vertex, VertexSink, WeightWindow,
+    Disc, Emission, Exit, ForkSink, PathRng, TracerConfig, Vertex, VertexSink, WeightWindow,
 };
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
@@ -424,9 +427,14 @@ const MAX_PARTICLES: u32 = 1024;
 /// A weight window's target weight at a point.
 type Target = Box<dyn Fn(DVec3) -> f64 + Sync>;
 
-/// The splitting target of paths from a point source at `p` ([`DetectorTechniques`]); `None`
-/// where nothing attenuates (no absorption) or the source is outside the medium.
-fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) -> Option<Target> {
+/// The splitting target of paths from a source at `p` that emits the power `power` (`4 pi` for
+/// a point source, 1 for a fibre; [`DetectorTechniques`]); `None` where nothing attenuates (no
+/// absorption) or the source is outside the medium.
+fn splitting_target<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    p: DVec3,
+    power: f64,
+) -> Option<Target> {
     let m = scene.medium();
     if !m.contains(p) {
         return None;
@@ -464,7 +472,7 @@ fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) 
         .iter()
         .map(|d| (*d, reflectance(d, p)))
         .collect();
-    let w0 = 4.0 * std::f64::consts::PI * m.albedo(p);
+    let w0 = power * m.albedo(p);
     Some(Box::new(move |x| {
         let importance: f64 = detectors
             .iter()
@@ -477,27 +485,34 @@ fn splitting_target<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, p: DVec3) 
     }))
 }
 
-/// The emissions of a detector scene's sources, in order: point sources and plane waves
+/// The emissions of a detector scene's sources, in order: point sources, plane waves and fibres
 /// (Gaussian beams are refused naming `sources`).
 fn emissions<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
 ) -> Result<Vec<Emission>, EstimatorError> {
     scene
-        .sources()
+        .emitters()
         .iter()
-        .map(|s| match *s {
-            Source::Point { position } => Ok(Emission::Point(position)),
-            Source::PlaneWave { direction } => Ok(Emission::Plane(direction)),
-            Source::GaussianBeam(_) => Err(EstimatorError::InvalidInput {
+        .map(|e| match *e {
+            Emitter::Field(Source::Point { position }) => Ok(Emission::Point(position)),
+            Emitter::Field(Source::PlaneWave { direction }) => Ok(Emission::Plane(direction)),
+            Emitter::Fibre(f) => Ok(Emission::Disc(Disc {
+                center: f.center(),
+                normal: f.normal(),
+                axis: -f.axis(),
+                radius: f.radius(),
+                sin_max: f.numerical_aperture() / f.outside_index(),
+            })),
+            Emitter::Field(Source::GaussianBeam(_)) => Err(EstimatorError::InvalidInput {
                 field: "sources".into(),
-                reason: "detectors read light from point sources and plane waves".into(),
+                reason: "detectors read light from point sources, plane waves and fibres".into(),
             }),
         })
         .collect()
 }
 
-/// The weight window's target of each emission under `techniques` (point sources with
-/// splitting; `None`: no window).
+/// The weight window's target of each emission under `techniques` (point and fibre sources
+/// with splitting; `None`: no window).
 fn windows<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     emissions: &[Emission],
@@ -507,7 +522,10 @@ fn windows<M: Medium, P: PhaseFunction>(
         .iter()
         .map(|e| match (*e, techniques) {
             (Emission::Point(p), DetectorTechniques::ExitNextEventAndSplitting) => {
-                splitting_target(scene, p)
+                splitting_target(scene, p, 4.0 * std::f64::consts::PI)
+            }
+            (Emission::Disc(d), DetectorTechniques::ExitNextEventAndSplitting) => {
+                splitting_target(scene, d.center, 1.0)
             }
             _ => None,
         })

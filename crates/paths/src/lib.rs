@@ -30,7 +30,7 @@ mod tracer;
 
 pub use factor::{FactorValue, NoFactor, PathFactor};
 pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
-pub use light::{Emission, ForkSink, WeightWindow};
+pub use light::{Disc, Emission, ForkSink, WeightWindow};
 pub use speckle_stats::PathRng;
 pub use tracer::{
     Exit, MAX_BEAM_COMPONENTS, MAX_OUTSIDE_COMPONENTS, MAX_POSITION_BEAMS, Tracer, TracerConfig,

@@ -18,6 +18,68 @@ pub enum Emission {
     /// A plane wave of unit intensity along the unit direction (a face at incidence `theta`
     /// receives the power `cos(theta)` per unit area).
     Plane(DVec3),
+    /// A disc on a face of the medium's box emitting unit power (outside the face) with uniform
+    /// radiance within a cone: the tip of a multimode fibre ([`Disc`]).
+    Disc(Disc),
+}
+
+/// A disc on a face of the medium's box that emits unit power, outside the face, with the same
+/// radiance at every point of the disc and every direction of a cone about its axis (a
+/// multimode fibre's tip; at the full aperture a Lambertian disc). Light reflected by a
+/// mismatched face at entry is lost, as from any source.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Disc {
+    /// The centre, on a face of the box.
+    pub center: DVec3,
+    /// The face's outward normal: a coordinate axis, `+-x`, `+-y` or `+-z`.
+    pub normal: DVec3,
+    /// The cone's axis (unit): the direction the light travels along into the medium. The cone
+    /// lies within the face's inward hemisphere: `-axis . normal >= sin_max`.
+    pub axis: DVec3,
+    /// The disc's radius.
+    pub radius: f64,
+    /// The sine of the cone's half-angle (outside the face), in `(0, 1]`.
+    pub sin_max: f64,
+}
+
+impl Disc {
+    /// A point of the disc (uniform), a direction of the cone, and the weight of the pair for
+    /// unit power (1 when the axis is the inward normal, where directions are sampled by the
+    /// radiance's `cos` itself; else `cos / E[cos]` over directions uniform in the cone), from
+    /// four uniform variates.
+    pub fn sample(&self, u: [f64; 4]) -> (DVec3, DVec3, f64) {
+        let n = self.normal;
+        // Two face axes (exact zeros along the normal keep the point on the face).
+        let (t1, t2) = if n.x != 0.0 {
+            (DVec3::Y, DVec3::Z)
+        } else if n.y != 0.0 {
+            (DVec3::Z, DVec3::X)
+        } else {
+            (DVec3::X, DVec3::Y)
+        };
+        let r = self.radius * u[0].sqrt();
+        let (s, c) = (std::f64::consts::TAU * u[1]).sin_cos();
+        let point = self.center + r * (c * t1 + s * t2);
+        let sin2 = self.sin_max * self.sin_max;
+        let (s, c) = (std::f64::consts::TAU * u[3]).sin_cos();
+        if self.axis == -n {
+            // Density cos / (pi sin2) in the cone: sin^2 uniform on [0, sin2].
+            let st2 = u[2] * sin2;
+            let (st, ct) = (st2.sqrt(), (1.0 - st2).max(0.0).sqrt());
+            return (point, ct * self.axis + st * (c * t1 + s * t2), 1.0);
+        }
+        // Uniform in the cone (solid angle `2 pi (1 - cos_max)`), weighted by the cosine to
+        // the inward normal over its mean, `(axis . m) pi sin2 / solid angle` (the part of the
+        // cosine across the axis averages to zero).
+        let one_minus_cos = sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt());
+        let ct = 1.0 - u[2] * one_minus_cos;
+        let st = (1.0 - ct * ct).max(0.0).sqrt();
+        let (a1, a2) = self.axis.any_orthonormal_pair();
+        let dir = ct * self.axis + st * (c * a1 + s * a2);
+        let solid = std::f64::consts::TAU * one_minus_cos;
+        let mean_cos = -self.axis.dot(n) * std::f64::consts::PI * sin2 / solid;
+        (point, dir, (-dir.dot(n)).max(0.0) / mean_cos)
+    }
 }
 
 /// A sink whose per-path state can be saved at a split and restored for each copy
@@ -148,6 +210,12 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                 };
                 let inside = self.enter(d, normal, rng)?;
                 (x, inside, total)
+            }
+            Emission::Disc(disc) => {
+                let (u, v) = (rng.next_2(), rng.next_2());
+                let (x, dir, weight) = disc.sample([u[0], u[1], v[0], v[1]]);
+                let inside = self.enter(dir, disc.normal, rng)?;
+                (x, inside, weight)
             }
         };
         // The first flight, reflected by the faces on the way, and its length.

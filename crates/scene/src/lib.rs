@@ -23,7 +23,7 @@
 
 use num_complex::Complex64;
 use rayon::prelude::*;
-use speckle_endpoints::{Detector, Pair, Sensor, Source};
+use speckle_endpoints::{Detector, Emitter, Pair, Sensor, Source};
 use speckle_medium::{DVec3, Interface, Medium};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
@@ -73,7 +73,7 @@ impl From<speckle_endpoints::EndpointError> for SceneError {
 /// A validated speckle rendering problem.
 ///
 /// ```
-/// use speckle_endpoints::{Detector, Pair, Sensor, Source};
+/// use speckle_endpoints::{Detector, Emitter, Pair, Sensor, Source};
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 /// use speckle_phase::Phase;
 /// use speckle_scene::Scene;
@@ -99,6 +99,7 @@ pub struct Scene<M, P> {
     sensors: Vec<Sensor>,
     pairs: Vec<Pair>,
     detectors: Vec<Detector>,
+    emitters: Vec<Emitter>,
     interface: Option<Interface>,
 }
 
@@ -222,6 +223,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             sensors,
             pairs,
             detectors: vec![],
+            emitters: vec![],
             interface: None,
         })
     }
@@ -231,7 +233,8 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// source-major, `Pair::sensor` indexing the detectors. Only the detector estimators
     /// (`speckle_estimators::render_detectors`) render it: [`Scene::tracer`] and the means refuse
     /// it, naming `sensors`. Sources must be point sources or plane waves (their legs end at the
-    /// first vertex), named `sources[i]` otherwise.
+    /// first vertex), named `sources[i]` otherwise; [`Scene::with_emitters`] also takes fibre
+    /// sources.
     pub fn with_detectors(
         medium: M,
         phases: Vec<P>,
@@ -239,18 +242,43 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         sources: Vec<Source>,
         detectors: Vec<Detector>,
     ) -> Result<Self, SceneError> {
+        let emitters = sources.into_iter().map(Emitter::Field).collect();
+        Self::with_emitters(medium, phases, wavelength, emitters, detectors)
+    }
+
+    /// [`Scene::with_detectors`] whose sources may also be fibres ([`Emitter::Fibre`],
+    /// validated against `medium` by [`Detector::fibre_source`]). [`Scene::sources`] shows a
+    /// fibre source as a point source at its centre (a stand-in for the checks and costs that
+    /// take a position); [`Scene::emitters`] has the fibre.
+    pub fn with_emitters(
+        medium: M,
+        phases: Vec<P>,
+        wavelength: f64,
+        emitters: Vec<Emitter>,
+        detectors: Vec<Detector>,
+    ) -> Result<Self, SceneError> {
         if detectors.is_empty() {
             return Err(invalid("sensors", "at least one sensor is needed"));
         }
-        if let Some(i) = sources
+        if let Some(i) = emitters
             .iter()
-            .position(|s| matches!(s, Source::GaussianBeam(_)))
+            .position(|s| matches!(s, Emitter::Field(Source::GaussianBeam(_))))
         {
             return Err(invalid(
                 format!("sources[{i}]"),
-                "detectors read light from point sources and plane waves; a focused Gaussian                  beam is not supported with them",
+                "detectors read light from point sources, plane waves and fibres; a focused \
+                 Gaussian beam is not supported with them",
             ));
         }
+        let sources = emitters
+            .iter()
+            .map(|e| match *e {
+                Emitter::Field(s) => s,
+                Emitter::Fibre(f) => Source::Point {
+                    position: f.center(),
+                },
+            })
+            .collect::<Vec<_>>();
         // The checks of every scene, with a stand-in sensor (the detectors replace it).
         let stand_in = Sensor::Point {
             position: detectors[0].center(),
@@ -267,7 +295,14 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
         scene.sensors.clear();
         scene.pairs = pairs;
         scene.detectors = detectors;
+        scene.emitters = emitters;
         Ok(scene)
+    }
+
+    /// The sources of a scene of detectors as given to [`Scene::with_emitters`] (fibres
+    /// included); empty for other scenes, whose sources are [`Scene::sources`].
+    pub fn emitters(&self) -> &[Emitter] {
+        &self.emitters
     }
 
     /// The detectors, when the scene's sensors are detectors ([`Scene::with_detectors`]);

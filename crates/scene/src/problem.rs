@@ -4,7 +4,7 @@
 
 use crate::SceneError;
 use crate::build::endpoints::{
-    EndpointInfo, SensorGrid, build_detectors, build_sensors, build_sources,
+    EndpointInfo, SensorGrid, build_detectors, build_fibres, build_sensors, build_sources,
 };
 use crate::build::medium::{MediumFacts, build_medium};
 use crate::build::render::{OutputSettings, RenderSettings, coherence_name};
@@ -17,7 +17,7 @@ use crate::validate::{self, invalid, positive};
 use crate::{AnyScene, Scene};
 use num_complex::Complex64;
 use serde_json::{Value, json};
-use speckle_endpoints::Pair;
+use speckle_endpoints::{Emitter, Pair};
 use speckle_medium::{AnyMedium, Dimension, HomogeneousBox, Interface, Medium};
 use speckle_phase::{Phase, PhaseFunction};
 use std::fmt::Write as _;
@@ -163,8 +163,23 @@ fn endpoint_row(e: &EndpointInfo) -> [f64; 7] {
         "plane" => 0.0,
         "point" => 1.0,
         "gaussian_beam" => 3.0,
+        "detector" => 4.0,
+        "fibre" => 5.0,
         _ => 2.0,
     };
+    if matches!(e.kind, "detector" | "fibre") {
+        let [x, y, z] = e.position.unwrap_or([f64::NAN; 3]);
+        let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        return [
+            e.entry as f64,
+            kind,
+            x,
+            y,
+            z,
+            f(e.radius),
+            f(e.numerical_aperture),
+        ];
+    }
     if e.kind == "gaussian_beam" {
         let [x, y, z] = e.position.unwrap_or([f64::NAN; 3]);
         return [
@@ -288,7 +303,7 @@ impl Problem {
             wavelength / file.medium.host_index.unwrap_or(1.0),
         )?;
         let bounds = *medium.bounds();
-        let (sources, source_desc) = build_sources(&mut file.sources, &bounds)?;
+        let (sources, mut source_desc) = build_sources(&mut file.sources, &bounds)?;
         let host_index = file.medium.host_index.unwrap_or(1.0);
         let outside_index = match file.medium.outside_index {
             None => host_index,
@@ -301,6 +316,27 @@ impl Problem {
             }
         };
         let detectors = build_detectors(&file.sensors, &medium, outside_index)?;
+        let fibres = build_fibres(&file.sources, &medium, outside_index)?;
+        if let (None, Some(i)) = (&detectors, fibres.iter().position(Option::is_some)) {
+            return Err(invalid(
+                format!("sources[{i}]"),
+                "a fibre source launches incoherent light over many modes, which only detectors \
+                 read (type = \"detector\" sensors): it has no field for point, far-field or \
+                 Gaussian sensors",
+            ));
+        }
+        // Each source of a fibre entry (one per entry) becomes the fibre.
+        let emitters: Vec<Emitter> = sources
+            .iter()
+            .zip(source_desc.iter_mut())
+            .map(|(s, d)| match &fibres[d.entry] {
+                Some((f, info)) => {
+                    *d = info.clone();
+                    Emitter::Fibre(*f)
+                }
+                None => Emitter::Field(*s),
+            })
+            .collect();
         let (sensors, sensor_desc, grid) = match &detectors {
             Some((_, desc)) => (vec![], desc.clone(), None),
             None => build_sensors(&mut file.sensors, &bounds)?,
@@ -319,7 +355,7 @@ impl Problem {
         let output = OutputSettings::build(&file.output, access)?;
         let scene = match detectors {
             Some((detectors, _)) => {
-                Scene::with_detectors(medium, phases, wavelength, sources, detectors)?
+                Scene::with_emitters(medium, phases, wavelength, emitters, detectors)?
             }
             None => Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?,
         };
@@ -630,9 +666,14 @@ impl Problem {
                 "count": n,
                 "layout": format!("float64 ({n}, {}), one row per expanded {what} entry", ENDPOINT_COLUMNS.len()),
                 "columns": ENDPOINT_COLUMNS,
-                "kind": "0 plane wave, 1 point, 2 far field",
+                "kind": "0 plane wave, 1 point, 2 far field, 3 Gaussian beam, 4 detector, \
+                         5 fibre source",
+                "x, y, z": "direction of plane waves and far-field sensors; focus of Gaussian \
+                            beams; position (centre) otherwise",
                 "p, q": "plane_tilts: tilt_deg, NaN; far_arc: angle_deg, k; far_grid: \
-                         theta_x_deg, theta_y_deg; point_grid: ix, iy; otherwise NaN, NaN",
+                         theta_x_deg, theta_y_deg; point_grid: ix, iy; gaussian_beam: \
+                         concentration, NaN; detector, fibre: radius, numerical_aperture; \
+                         otherwise NaN, NaN",
             })
         };
         (

@@ -318,6 +318,24 @@ pub enum SourceSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         numerical_aperture: Option<f64>,
     },
+    /// A fibre source on a face of the medium's box: a disc that launches unit power (outside
+    /// the face) with uniform radiance over the disc and a cone of directions (a multimode
+    /// fibre's tip; at the full aperture a Lambertian disc). Incoherent: only detectors read
+    /// it (docs/conventions.md, "Detectors").
+    Fibre {
+        /// The centre of the disc, on a face of the medium's box.
+        position: [f64; 3],
+        /// The radius of the disc (> 0; the disc must lie on the face).
+        radius: f64,
+        /// The numerical aperture `n sin(theta_max)` in `(0, n]`, `n` the index outside the
+        /// face; `n`, every direction into the medium, when absent.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        numerical_aperture: Option<f64>,
+        /// The direction the light travels into the medium (the face's inward normal when
+        /// absent); the cone must stay on the medium's side of the face.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<[f64; 3]>,
+    },
     /// Plane waves: `direction` rotated about `axis` by each angle of `tilts_deg`.
     PlaneTilts {
         /// The untilted propagation direction (default `+z`; `+y` in flatland).

@@ -22,7 +22,8 @@ use speckle_medium::{Aabb, DVec3, Dimension};
 pub struct EndpointInfo {
     /// Index of the `[[sources]]` or `[[sensors]]` entry it came from.
     pub entry: usize,
-    /// `"plane"` (a plane wave), `"point"` or `"far"` (a far-field sensor).
+    /// `"plane"` (a plane wave), `"point"`, `"far"` (a far-field sensor), `"gaussian_beam"`,
+    /// `"detector"` or `"fibre"` (a fibre source).
     #[serde(rename = "type")]
     pub kind: &'static str,
     /// Unit propagation or viewing direction.
@@ -250,6 +251,16 @@ pub fn build_sources(
                 )?;
                 out.push(Source::GaussianBeam(b));
                 desc.push(EndpointInfo::gaussian(i, &b, b.axis));
+            }
+            SourceSpec::Fibre { position: p, .. } => {
+                // A stand-in at the centre: [`build_fibres`] builds the fibre against the
+                // medium, and the scene of detectors takes it (`Scene::with_emitters`).
+                let p = position(&f("position"), *p, dim)?;
+                out.push(Source::Point { position: p });
+                desc.push(EndpointInfo {
+                    kind: "fibre",
+                    ..EndpointInfo::point(i, p)
+                });
             }
             SourceSpec::PlaneTilts {
                 direction: d,
@@ -647,6 +658,49 @@ pub fn build_detectors<M: speckle_medium::Medium>(
         out.push(d);
     }
     Ok(Some((out, desc)))
+}
+
+/// The fibre sources of `[[sources]]`, by entry (`None` for the other entries), validated
+/// against `medium` with the index `outside_index` outside its faces, with their descriptions.
+pub fn build_fibres<M: speckle_medium::Medium>(
+    specs: &[SourceSpec],
+    medium: &M,
+    outside_index: f64,
+) -> Result<Vec<Option<(Detector, EndpointInfo)>>, SceneError> {
+    specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let SourceSpec::Fibre {
+                position,
+                radius,
+                numerical_aperture,
+                axis,
+            } = s
+            else {
+                return Ok(None);
+            };
+            let f = Detector::fibre_source(
+                &format!("sources[{i}]"),
+                medium,
+                DVec3::from_array(*position),
+                *radius,
+                numerical_aperture.unwrap_or(outside_index),
+                axis.map(DVec3::from_array),
+                outside_index,
+            )?;
+            let info = EndpointInfo {
+                entry: i,
+                kind: "fibre",
+                position: Some(f.center().to_array()),
+                direction: Some((-f.axis()).to_array()),
+                radius: Some(f.radius()),
+                numerical_aperture: Some(f.numerical_aperture()),
+                ..EndpointInfo::default()
+            };
+            Ok(Some((f, info)))
+        })
+        .collect()
 }
 
 #[cfg(test)]
