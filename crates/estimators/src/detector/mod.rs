@@ -1,0 +1,136 @@
+//! Intensities and temporal correlations of disc detectors (fibres) by light tracing: each path
+//! is emitted by a source ([`speckle_paths::Tracer::trace_emitted`]), enters the medium
+//! (refracted or reflected at a mismatched face), is traced until it leaves it, and registers
+//! with every detector whose disc and aperture it leaves through
+//! ([`speckle_endpoints::Detector::read`]); every vertex near a disc also connects to it by
+//! next-event estimation, the two weighed by multiple importance sampling.
+//!
+//! # The estimate
+//!
+//! Light tracing in the absolute units of `docs/conventions.md`: a point source emits the power
+//! `4 pi` (unit radiant intensity, `e^{ikr}/r`), a plane wave of unit intensity the power
+//! `|d . n| |face|` into each face it lights, a fibre source unit power (outside its face, with
+//! uniform radiance over its disc and cone: [`speckle_paths::Disc`]), so that a fibre-to-fibre
+//! reading is the detected irradiance per unit launched power and obeys reciprocity,
+//! `R_sd sin^2(theta_s) = R_ds sin^2(theta_d)` (`sin theta = NA / n` of each fibre). A path carries that power to its first collision
+//! `x1`, where it is multiplied by the albedo (no roulette at `x1`), and keeps it (flights,
+//! roulette on the albedo and phase-function directions are sampled with the densities of the
+//! radiative transfer throughput). With `S` sources, path `n` comes from source `n mod S` with
+//! `S` times the weight. A path `x1 .. x_b` whose flight from `x_b`, scattered along `w_out`,
+//! leaves the medium at `y` along `w` (outside, after refraction) adds, for its source's pair
+//! with detector `d` at the time lag `t`,
+//!
+//! `W R_d(y, w) m exp(-k^2 |t| Y + i k t Q)`,
+//!
+//! `R_d` the detector's weight of the exit (`1 / |A|` or `1 / (|A| cos)`), `m` the technique's
+//! weight (below), and `Y = sum_m D(x_m) |q_m|^2`, `Q = sum_m q_m . U(x_m)` over every vertex
+//! with the momentum transfers `q_1 = w1 - a` (`a` the direction the light arrived at `x1`),
+//! `q_m = w_m^out - w_m^in` (reflections off the faces between vertices are not scattering and
+//! transfer nothing) and `q_b = w_out - w_in` (Eq. 14 at each vertex; each exit is one
+//! plane-wave mode of the detector). For one point source in an index-matched medium every
+//! registered exit has the same weight, `4 pi albedo / |A|` (flux).
+//!
+//! Next-event estimation (the default, [`DetectorTechniques`]): a vertex within optical depth
+//! [`NEXT_EVENT_DEPTH`] of a disc connects to a uniform point `y` of it, adding
+//! `W rho(w_in -> w) e^{-OD} T_F R_d (cos / r^2) / (1/|A| + rho cos / r^2)`, `T_F` the Fresnel
+//! transmittance of the face; an exit through the disc straight from such a vertex is weighed
+//! by `(rho cos / r^2) / (rho cos / r^2 + 1/|A|)` (the balance heuristic; the transmittances are
+//! common to both techniques and left out of the weights, which sum to 1 at every point).
+//!
+//! Forward paths only: a detector integrates many speckle grains, over which the coherent
+//! backscattering cross term of a path and its reverse averages out (its cone is about
+//! `lambda / l*` wide); the reading is the incoherent sum.
+
+use crate::records::PathRecords;
+use crate::{CovarianceOptions, EstimatorError, Scene};
+use speckle_medium::Medium;
+use speckle_motion::MotionModel;
+use speckle_phase::PhaseFunction;
+use speckle_stats::Progress;
+
+mod estimate;
+mod pilot;
+mod render;
+mod techniques;
+
+pub use estimate::DetectorEstimate;
+pub use pilot::{PILOT_PATHS, PILOT_VERTICES, detector_vertices_per_path};
+pub use render::MAX_RECORD_BYTES;
+pub use techniques::{DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY};
+
+/// Renders every (source, detector) pair of a detector scene ([`Scene::with_detectors`]) with
+/// `opts.paths` paths: the readings and, with `motion`, their temporal correlations `C(t)` at
+/// `lags` (`motion` `None`: static, `lags` ignored, one lag 0). Sampling follows
+/// [`Scene::detector_tracer`] (`opts.coherence` is unused: paths are forward only), with the
+/// default [`DetectorTechniques`].
+///
+/// Returns `Ok(None)` when cancelled; an error naming the field for a scene without detectors
+/// or lags that are not finite.
+pub fn render_detectors<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    progress: &dyn Progress,
+) -> Result<Option<DetectorEstimate>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    render_detectors_with(scene, motion, opts, DetectorTechniques::default(), progress)
+}
+
+/// [`render_detectors`] with the given techniques (the same expectation; they differ in
+/// variance and cost).
+pub fn render_detectors_with<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    techniques: DetectorTechniques,
+    progress: &dyn Progress,
+) -> Result<Option<DetectorEstimate>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    Ok(render::render(scene, motion, opts, techniques, None, progress)?.map(|(e, _)| e))
+}
+
+/// [`render_detectors`] (default techniques, the same estimate bitwise) that also keeps the
+/// records of every contribution to the pairs `pairs` (`None`: every pair) ([`PathRecords`]),
+/// for evaluations at other parameters without tracing again. The motion (`None`: at rest)
+/// gives the rendered parameters.
+///
+/// Returns `Ok(None)` when cancelled; an error naming `pairs` for a pair that does not exist,
+/// and one naming `render.paths` when the records would take more than [`MAX_RECORD_BYTES`]
+/// (the paths after the records pass it are not traced, so that this comes quickly).
+pub fn render_detector_records<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    pairs: Option<&[usize]>,
+    progress: &dyn Progress,
+) -> Result<Option<(DetectorEstimate, PathRecords)>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    let j = scene.len();
+    let mut keep = vec![pairs.is_none(); j];
+    for &p in pairs.unwrap_or_default() {
+        *keep
+            .get_mut(p)
+            .ok_or_else(|| EstimatorError::InvalidInput {
+                field: "pairs".into(),
+                reason: format!("pair {p} does not exist ({j} pairs)"),
+            })? = true;
+    }
+    Ok(render::render(
+        scene,
+        motion,
+        opts,
+        DetectorTechniques::default(),
+        Some(keep),
+        progress,
+    )?
+    .map(|(e, r)| (e, r.expect("records were kept"))))
+}

@@ -1,0 +1,502 @@
+//! The detector render itself: the sink that registers each path's exits and next-event
+//! connections with the detectors, and the batched render over all paths.
+
+use super::estimate::DetectorEstimate;
+use super::techniques::{
+    DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY, emissions, trace_path, windows,
+};
+use crate::records::{PER_MATERIAL, Parameters, PathRecords, Record};
+use crate::{CMatrix, CovarianceOptions, EstimatorError, MatrixEstimate, Scene};
+use glam::DVec3;
+use num_complex::Complex64;
+use speckle_endpoints::Detector;
+use speckle_medium::Medium;
+use speckle_motion::{Motion, MotionModel};
+use speckle_paths::{Exit, ForkSink, PathRng, Vertex, VertexSink};
+use speckle_phase::PhaseFunction;
+use speckle_stats::rng::derive_seed;
+use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
+
+/// The largest memory the records of [`super::render_detector_records`] may take (bytes): a render
+/// whose records would take more stops with an error naming `render.paths`.
+pub const MAX_RECORD_BYTES: usize = 1 << 31;
+
+/// A path's state along the way: what its next contributions depend on. The copies of a split
+/// path restore it ([`ForkSink`]).
+#[derive(Debug, Clone, Default)]
+struct PathState {
+    /// The direction the light arrived at `x1` along.
+    arrival: DVec3,
+    /// The first vertex's motion and material, and the direction onwards (zero before `x2`).
+    first: Motion,
+    material1: usize,
+    w1: DVec3,
+    /// The current vertex, its motion and material, and the direction it was reached along.
+    x: DVec3,
+    here: Motion,
+    material: usize,
+    w_in: DVec3,
+    /// `sum D |q|^2` and `sum q . U` over the interior vertices so far, and the first sum per
+    /// material.
+    y: f64,
+    q: f64,
+    y_material: Vec<f64>,
+    /// The length of the first flight inside the medium (to `x1`).
+    first_length: f64,
+    /// With records: per material, `sum |q|^2` and `sum q` over the interior vertices so far
+    /// ([`crate::PathRecords`]).
+    transfers: Vec<f64>,
+}
+
+/// The sink of the detector estimator: a path's state and the buffer of its values.
+struct Sink<'a, M: Medium, P> {
+    scene: &'a Scene<M, P>,
+    motion: Option<&'a MotionModel>,
+    lags: &'a [f64],
+    k: f64,
+    next_event: bool,
+    /// The source that emitted the path and the factor of its share of the paths (the number
+    /// of sources).
+    source: usize,
+    share: f64,
+    /// The stream of the next-event connections.
+    rng: PathRng,
+    /// Where the path is (saved and restored for the copies of a split path).
+    path: PathState,
+    /// The path's values, `J x L` correlations then `J x M` decay sums (see
+    /// [`DetectorEstimate::decay`]), whether it registered, and whether by single scattering.
+    values: Vec<Complex64>,
+    registered: bool,
+    single: bool,
+    /// Whether the path's contributions are recorded, the pairs whose contributions are, and
+    /// the path's records so far.
+    record: bool,
+    keep: Vec<bool>,
+    records: Vec<Record>,
+    record_transfers: Vec<f64>,
+}
+
+impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
+    fn motion_at(&self, x: DVec3) -> Motion {
+        match self.motion {
+            Some(m) => *m.at(self.scene.medium(), x),
+            None => Motion::default(),
+        }
+    }
+
+    /// Whether the current vertex connects to `det` by next-event estimation (see
+    /// [`NEXT_EVENT_DEPTH`]).
+    #[inline]
+    fn connects(&self, det: &Detector) -> bool {
+        if !self.next_event {
+            return false;
+        }
+        match self.scene.medium().uniform_sigma_t() {
+            Some(s) => {
+                // The depth below the face's plane first (a dot product), then the distance.
+                let depth = (self.path.x - det.center()).dot(det.normal()).abs();
+                s * depth <= NEXT_EVENT_DEPTH
+                    && s * det.distance_bound(self.path.x) <= NEXT_EVENT_DEPTH
+            }
+            None => true,
+        }
+    }
+
+    /// Adds `weight` (the path weight times the detector's reading and the technique's
+    /// weight) to the pair of the path's source and detector `d`: the path leaves its last
+    /// vertex, the current one (or `x1` when `single`), along `w_out`, after `vertices`
+    /// vertices and flights of `length` from `x1`.
+    fn register(
+        &mut self,
+        d: usize,
+        w_out: DVec3,
+        weight: f64,
+        single: bool,
+        (vertices, length): (u32, f64),
+    ) {
+        let nl = self.lags.len();
+        let nd = self.scene.detectors().len();
+        let k2 = self.k * self.k;
+        let w1 = if single { w_out } else { self.path.w1 };
+        // The last vertex's transfer (b >= 2) at its motion.
+        let (y_last, q_last) = if single {
+            (0.0, 0.0)
+        } else {
+            let q = w_out - self.path.w_in;
+            (
+                self.path.here.diffusion * q.length_squared(),
+                q.dot(self.path.here.drift),
+            )
+        };
+        // The first vertex turns the arriving light into w1.
+        let q1 = w1 - self.path.arrival;
+        let y = self.path.y + y_last + self.path.first.diffusion * q1.length_squared();
+        let q = self.path.q + q_last + q1.dot(self.path.first.drift);
+        let w = weight * self.share;
+        let pair = self.source * nd + d;
+        let base = pair * nl;
+        for (l, &t) in self.lags.iter().enumerate() {
+            self.values[base + l] +=
+                w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
+        }
+        // The Brownian decay sums per material: the interior ones, the first and last vertices'.
+        let nm = self.path.y_material.len();
+        let decay = self.scene.len() * nl + pair * nm;
+        for (m, ym) in self.path.y_material.iter().enumerate() {
+            self.values[decay + m] += Complex64::from(w * ym);
+        }
+        self.values[decay + self.path.material1] +=
+            Complex64::from(w * self.path.first.diffusion * q1.length_squared());
+        if !single {
+            self.values[decay + self.path.material] += Complex64::from(w * y_last);
+        }
+        self.registered = true;
+        self.single = single;
+        if self.record && self.keep[pair] {
+            self.records.push(Record {
+                path: 0,
+                pair: pair as u32,
+                vertices,
+                weight: w,
+                length: self.path.first_length + length,
+            });
+            let start = self.record_transfers.len();
+            self.record_transfers
+                .extend_from_slice(&self.path.transfers);
+            let mut add = |m: usize, q: DVec3| {
+                let o = start + m * PER_MATERIAL;
+                self.record_transfers[o] += q.length_squared();
+                self.record_transfers[o + 1] += q.x;
+                self.record_transfers[o + 2] += q.y;
+                self.record_transfers[o + 3] += q.z;
+            };
+            add(self.path.material1, q1);
+            if !single {
+                add(self.path.material, w_out - self.path.w_in);
+            }
+        }
+    }
+
+    /// Adds the transfer `q` at a vertex of material `m` to the path's recorded sums.
+    fn add_transfer(&mut self, m: usize, q: DVec3) {
+        if self.record {
+            let t = &mut self.path.transfers[m * PER_MATERIAL..(m + 1) * PER_MATERIAL];
+            t[0] += q.length_squared();
+            t[1] += q.x;
+            t[2] += q.y;
+            t[3] += q.z;
+        }
+    }
+}
+
+impl<M: Medium, P: PhaseFunction> ForkSink for Sink<'_, M, P> {
+    type Saved = PathState;
+
+    fn save(&self) -> PathState {
+        self.path.clone()
+    }
+
+    fn restore(&mut self, saved: &PathState) {
+        self.path.clone_from(saved);
+    }
+}
+
+impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
+    fn arrival(&mut self, dir: DVec3, length: f64) {
+        self.path.arrival = dir;
+        self.path.first_length = length;
+    }
+
+    fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
+        self.path.first = self.motion_at(x1);
+        self.path.material1 = self.scene.medium().material(x1);
+        self.path.w1 = DVec3::ZERO;
+        self.path.x = x1;
+        self.path.here = self.path.first;
+        self.path.material = self.path.material1;
+        self.path.w_in = DVec3::ZERO;
+        self.path.y = 0.0;
+        self.path.q = 0.0;
+        self.path.y_material.fill(0.0);
+        self.path.transfers.fill(0.0);
+    }
+
+    fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
+        if v.index > 2 {
+            // x_{b-1} is now interior: it turned the path from w_in into the direction it
+            // scattered into (v.w_in, unless a face reflected the flight).
+            let q = v.w_prev_out - self.path.w_in;
+            let y = self.path.here.diffusion * q.length_squared();
+            self.path.y += y;
+            self.path.y_material[self.path.material] += y;
+            self.path.q += q.dot(self.path.here.drift);
+            self.add_transfer(self.path.material, q);
+        } else {
+            self.path.w1 = v.w12;
+        }
+        self.path.x = v.x;
+        self.path.here = self.motion_at(v.x);
+        self.path.material = self.scene.medium().material(v.x);
+        self.path.w_in = v.w_in;
+        // Next-event connections to a point of each disc, weighed against the exit estimator
+        // by the balance heuristic of the two densities of the exit point on the disc: `1 / |A|`
+        // and the phase function's `rho(w_in -> w) cos / r^2`.
+        let scene = self.scene;
+        for (d, det) in scene.detectors().iter().enumerate() {
+            if !self.connects(det) {
+                continue;
+            }
+            let y = det.sample_point(self.rng.next_2());
+            let to = y - v.x;
+            let r2 = to.length_squared();
+            let w = to / r2.sqrt();
+            let cos = w.dot(det.normal());
+            // Through the face: the Fresnel transmittance and the refracted direction.
+            let (transmitted, outside) = match scene.interface() {
+                None => (1.0, Some(w)),
+                Some(i) => (1.0 - i.reflectance(cos), i.refract(w, det.normal())),
+            };
+            let Some(outside) = outside else {
+                continue;
+            };
+            let reading = det.read(y, outside);
+            if reading <= 0.0 {
+                continue;
+            }
+            let rho = scene.phases()[v.ty].pdf_direction(v.w_in, w);
+            let geometry = cos / r2;
+            let transmittance = (-scene.medium().optical_depth(v.x, y)).exp();
+            let f = rho * transmittance * transmitted * reading * geometry;
+            if f <= 0.0 {
+                continue;
+            }
+            let mis_over_pdf = 1.0 / (1.0 / det.area() + rho * geometry);
+            let length = v.length + r2.sqrt();
+            self.register(d, w, v.weight * f * mis_over_pdf, false, (v.index, length));
+        }
+    }
+
+    fn exit(&mut self, e: &Exit, _rng: &mut PathRng) {
+        let scene = self.scene;
+        for (d, det) in scene.detectors().iter().enumerate() {
+            let reading = det.read(e.point, e.dir);
+            if reading <= 0.0 {
+                continue;
+            }
+            let single = e.index == 1;
+            // The balance heuristic against the next-event connection of the last vertex (the
+            // current vertex of the sink), where it makes one; an exit after reflections off
+            // the faces is not a path that connection samples.
+            let mis = if single || e.reflections > 0 || !self.connects(det) {
+                1.0
+            } else {
+                let r2 = (e.point - e.x).length_squared();
+                let q = scene.phases()[e.ty].pdf_direction(e.w_in, e.w_out)
+                    * e.w_out.dot(det.normal())
+                    / r2;
+                q / (q + 1.0 / det.area())
+            };
+            self.register(
+                d,
+                e.w_out,
+                e.weight * reading * mis,
+                single,
+                (e.index, e.length),
+            );
+        }
+    }
+}
+
+/// The render of [`render_detectors_with`], with the records when `record`.
+pub(super) fn render<M, P>(
+    scene: &Scene<M, P>,
+    motion: Option<(&MotionModel, &[f64])>,
+    opts: &CovarianceOptions,
+    techniques: DetectorTechniques,
+    keep: Option<Vec<bool>>,
+    progress: &dyn Progress,
+) -> Result<Option<(DetectorEstimate, Option<PathRecords>)>, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    let invalid = |field: &str, reason: String| EstimatorError::InvalidInput {
+        field: field.into(),
+        reason,
+    };
+    if !scene.has_detectors() {
+        return Err(invalid(
+            "sensors",
+            "the detector estimator needs a scene whose sensors are detectors".into(),
+        ));
+    }
+    if opts.paths < 2 {
+        return Err(invalid(
+            "render.paths",
+            format!("at least 2 paths are needed (got {})", opts.paths),
+        ));
+    }
+    let (model, lags): (Option<&MotionModel>, Vec<f64>) = match motion {
+        Some((m, lags)) => {
+            speckle_motion::check_lags("motion.lags", lags)
+                .map_err(|e| invalid("motion.lags", e.to_string()))?;
+            (Some(m), lags.to_vec())
+        }
+        None => (None, vec![0.0]),
+    };
+    let tracer = scene
+        .detector_tracer(opts.sampling)
+        .map_err(|e| invalid("render", e.to_string()))?;
+    let (j, nl) = (scene.len(), lags.len());
+    let k = scene.wavenumber();
+    let registered = std::sync::atomic::AtomicU64::new(0);
+    let emissions = emissions(scene)?;
+    let n_sources = emissions.len() as u64;
+    let windows = windows(scene, &emissions, techniques);
+    let nm = scene.medium().materials();
+    let record = keep.is_some();
+    let keep = keep.unwrap_or_default();
+    let init = || Sink {
+        scene,
+        motion: model,
+        lags: &lags,
+        k,
+        next_event: techniques != DetectorTechniques::Exit,
+        source: 0,
+        share: n_sources as f64,
+        rng: PathRng::new(0, 0),
+        path: PathState {
+            y_material: vec![0.0; nm],
+            transfers: vec![0.0; if record { nm * PER_MATERIAL } else { 0 }],
+            ..PathState::default()
+        },
+        values: vec![Complex64::ZERO; j * (nl + nm)],
+        registered: false,
+        single: false,
+        record,
+        keep: keep.clone(),
+        records: vec![],
+        record_transfers: vec![],
+    };
+    // The records of each path that registered, as (path, records, transfers), and their size.
+    type PathChunk = (u64, Vec<Record>, Vec<f64>);
+    let chunks: std::sync::Mutex<Vec<PathChunk>> = std::sync::Mutex::new(vec![]);
+    let record_bytes = std::sync::atomic::AtomicUsize::new(0);
+    let per_record = std::mem::size_of::<Record>() + 8 * PER_MATERIAL * nm;
+    let seed = opts.seed;
+    let nee_seed = derive_seed(seed, NEXT_EVENT_KEY);
+    let path = |sink: &mut Sink<M, P>, n: u64, sums: &mut [BatchSum], _poll: &mut Poll| {
+        // Once the records are over their limit the render is refused: trace no more.
+        if record && record_bytes.load(std::sync::atomic::Ordering::Relaxed) > MAX_RECORD_BYTES {
+            return;
+        }
+        let mut rng = PathRng::new(seed, n);
+        sink.rng = PathRng::new(nee_seed, n);
+        // Path n comes from source n mod S (each source a 1/S share of the paths).
+        sink.source = (n % n_sources) as usize;
+        trace_path(
+            &tracer,
+            emissions[sink.source],
+            &windows[sink.source],
+            &mut rng,
+            sink,
+        );
+        if sink.registered {
+            // Part 0: single scattering, part 1: multiple.
+            sums[usize::from(!sink.single)].push_values(&sink.values, Complex64::ONE);
+            sink.values.fill(Complex64::ZERO);
+            sink.registered = false;
+            registered.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        if !sink.records.is_empty() {
+            let size = sink.records.len() * per_record;
+            let before = record_bytes.fetch_add(size, std::sync::atomic::Ordering::Relaxed);
+            if before + size <= MAX_RECORD_BYTES {
+                let mut records = std::mem::take(&mut sink.records);
+                records.iter_mut().for_each(|r| r.path = n);
+                let transfers = std::mem::take(&mut sink.record_transfers);
+                chunks
+                    .lock()
+                    .expect("no panic holds the lock")
+                    .push((n, records, transfers));
+            } else {
+                sink.records.clear();
+                sink.record_transfers.clear();
+            }
+        }
+    };
+    let Some((parts, Some(total))) = batch_moments(
+        opts.paths,
+        j * (nl + nm),
+        Layout::GeneralDiagonal,
+        2,
+        true,
+        init,
+        path,
+        progress,
+    ) else {
+        return Ok(None);
+    };
+    let [single, multiple]: [MatrixEstimate; 2] =
+        parts.try_into().expect("two parts were estimated");
+    // The first J L rows are the correlations, the next J M the decay sums.
+    let rows = |m: &MatrixEstimate, r: std::ops::Range<usize>| MatrixEstimate {
+        value: CMatrix::from_vec(r.len(), 1, r.clone().map(|e| m.value.get(e, 0)).collect()),
+        std_error: CMatrix::from_vec(r.len(), 1, r.map(|e| m.std_error.get(e, 0)).collect()),
+        samples: m.samples,
+    };
+    let (c, d) = (0..j * nl, j * nl..j * (nl + nm));
+    let records = if record {
+        let bytes = record_bytes.into_inner();
+        if bytes > MAX_RECORD_BYTES {
+            return Err(invalid(
+                "render.paths",
+                format!(
+                    "the records of {} paths would take {} MiB, over the limit of {} MiB: \
+                     render fewer paths",
+                    opts.paths,
+                    bytes >> 20,
+                    MAX_RECORD_BYTES >> 20
+                ),
+            ));
+        }
+        let mut chunks = chunks.into_inner().expect("no panic holds the lock");
+        chunks.sort_unstable_by_key(|c| c.0);
+        let (mut records, mut transfers) = (vec![], vec![]);
+        for (_, r, t) in chunks {
+            records.extend(r);
+            transfers.extend(t);
+        }
+        let m = scene.medium();
+        let center = m.bounds().lerp([0.5; 3]);
+        let coefficients = (nm == 1 && scene.phases().len() == 1)
+            .then(|| m.uniform_sigma_t())
+            .flatten()
+            .map(|t| (m.sigma_s(center), t - m.sigma_s(center)));
+        let rendered = Parameters {
+            motions: (0..nm)
+                .map(|i| model.map_or(Motion::default(), |m| *m.of_material(i)))
+                .collect(),
+            coefficients,
+        };
+        Some(PathRecords::new(
+            nm, k, opts.paths, rendered, keep, records, transfers,
+        ))
+    } else {
+        None
+    };
+    Ok(Some((
+        DetectorEstimate {
+            lags,
+            pairs: j,
+            single: rows(&single, c.clone()),
+            multiple: rows(&multiple, c.clone()),
+            decay: rows(&total, d),
+            total: rows(&total, c),
+            materials: nm,
+            registered: registered.into_inner(),
+            paths: opts.paths,
+        },
+        records,
+    )))
+}
