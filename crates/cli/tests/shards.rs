@@ -1,7 +1,9 @@
 //! End-to-end tests of sharded runs through the binary: `--shard I/N` writes one shard file,
 //! `speckle merge` of the shards writes byte for byte the single run's arrays (covariance,
-//! intensity, fields, wave; shards on 1 to 3 threads, files given in any order); a missing
-//! shard is named by index with exit code 2 and rendering it completes the merge; a cancelled
+//! intensity, fields, wave, and the readings of detectors in a layered medium from a point and
+//! a fibre source; shards on 1 to 3 threads, files given in any order); a missing
+//! shard is named by index with exit code 2 and rendering it completes the merge; commands that
+//! render whole runs only (g1, map, single) refuse `--shard` naming it; a cancelled
 //! shard writes nothing; bad shard specifications and shards of other runs exit with 2.
 //!
 //! Run time (release, 2 cores): a few seconds.
@@ -41,6 +43,46 @@ paths = 10007
 seed = 5
 realizations = 9
 paths_per_realization = 503
+"#;
+
+/// Two fibre detectors in a layered, refracting slab lit by a point source and a fibre.
+const FIBRES: &str = r#"
+name = "fib"
+wavelength = 785e-7
+[medium]
+size = [2.0, 2.0, 1.0]
+center = [0.0, 0.0, 0.5]
+layers = [0.2, 0.8]
+host_index = 1.4
+outside_index = 1.0
+[[medium.materials]]
+sigma_s = 40.0
+sigma_a = 0.2
+phase = { type = "hg", g = 0.8 }
+[[medium.materials]]
+sigma_s = 60.0
+sigma_a = 0.1
+phase = { type = "hg", g = 0.9 }
+[[sources]]
+type = "point"
+position = [-0.2, 0.0, 0.0]
+[[sources]]
+type = "fibre"
+position = [0.0, 0.3, 0.0]
+radius = 0.05
+numerical_aperture = 0.4
+[[sensors]]
+type = "detector"
+position = [0.2, 0.0, 0.0]
+radius = 0.05
+[[sensors]]
+type = "detector"
+position = [0.4, 0.0, 0.0]
+radius = 0.1
+numerical_aperture = 0.5
+[render]
+paths = 20011
+seed = 7
 "#;
 
 /// A lossless isotropic box for the wave solver, 11 configurations.
@@ -89,15 +131,17 @@ fn merged_shards_write_the_single_runs_arrays() {
     let d = dir.path();
     std::fs::write(d.join("tiny.toml"), TINY).unwrap();
     std::fs::write(d.join("w.toml"), WAVE).unwrap();
+    std::fs::write(d.join("fib.toml"), FIBRES).unwrap();
     for (command, scene, n) in [
         ("covariance", "tiny.toml", 3),
         ("intensity", "tiny.toml", 7),
+        ("intensity", "fib.toml", 3),
         ("fields", "tiny.toml", 2),
         ("wave", "w.toml", 3),
     ] {
-        let single = d.join(format!("{command}-single"));
-        let shards = d.join(format!("{command}-shards"));
-        let merged = d.join(format!("{command}-merged"));
+        let single = d.join(format!("{command}-{scene}-single"));
+        let shards = d.join(format!("{command}-{scene}-shards"));
+        let merged = d.join(format!("{command}-{scene}-merged"));
         let (single_s, shards_s, merged_s) = (
             single.to_str().unwrap(),
             shards.to_str().unwrap(),
@@ -278,4 +322,26 @@ fn bad_shard_specifications_and_shards_of_other_runs_exit_with_2() {
         stderr(&o)
     );
     assert!(!d.join("m").exists());
+}
+
+#[test]
+fn commands_that_render_whole_runs_refuse_a_shard_naming_it() {
+    // They ignored --shard and rendered the whole run before.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = format!("{TINY}\n[motion]\ndiffusion = 1e-3\nlags = [0.0, 1.0]\n");
+    std::fs::write(d.join("tiny.toml"), scene).unwrap();
+    for command in ["g1", "map", "single"] {
+        let o = speckle(
+            d,
+            &[command, "tiny.toml", "--shard", "0/2", "--out", "o", "-q"],
+        );
+        assert_eq!(o.status.code(), Some(2), "{command}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("shard") && stderr(&o).contains("whole runs only"),
+            "{command}: {}",
+            stderr(&o)
+        );
+        assert!(!d.join("o").exists(), "{command} wrote output");
+    }
 }

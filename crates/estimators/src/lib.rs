@@ -61,8 +61,9 @@ pub use covariance::{
 };
 pub use detector::{
     DetectorEstimate, DetectorTechniques, MAX_RECORD_BYTES, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY,
-    PILOT_PATHS, PILOT_VERTICES, detector_vertices_per_path, render_detector_records,
-    render_detectors, render_detectors_with,
+    PILOT_PATHS, PILOT_VERTICES, detector_readings, detector_shard_spec,
+    detector_vertices_per_path, render_detector_records, render_detectors, render_detectors_shard,
+    render_detectors_with,
 };
 pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,

@@ -39,8 +39,8 @@ pub use temporal::{Temporal, temporal};
 use num_complex::Complex64;
 use speckle_estimators::{
     CovarianceEstimate, CovarianceOptions, EstimatorError, FieldEstimate, FieldOptions,
-    render_covariance, render_covariance_shard, render_fields, render_fields_shard,
-    render_intensity, render_intensity_shard,
+    render_covariance, render_covariance_shard, render_detectors_shard, render_fields,
+    render_fields_shard, render_intensity, render_intensity_shard,
 };
 use speckle_scene::cost::{self, Command, Estimate};
 use speckle_scene::{LoadError, Problem, SceneError};
@@ -368,42 +368,41 @@ pub fn render_shard(
     progress: &dyn Progress,
 ) -> Result<ShardFile, RunError> {
     let start = std::time::Instant::now();
-    if p.scene.has_detectors() {
-        return Err(RunError::Load(p.in_document(SceneError::InvalidInput {
-            field: "sensors".into(),
-            reason: "renders of detectors are not sharded yet; render them whole".into(),
-        })));
-    }
-    let data = match kind {
-        Kind::Covariance => {
-            let m = render_covariance_shard(&p.scene, &covariance_options(p), shard, progress)?;
-            // The shard's share of the means: the merge computes none of them.
-            let pairs = shard.units(p.pairs());
-            let Means { values, warning } = means(p, pairs.clone(), progress)?;
-            ShardData::Covariance(m, PairShare { pairs, values }, warning)
-        }
-        Kind::Intensity => ShardData::Moments(render_intensity_shard(
-            &p.scene,
-            &covariance_options(p),
-            shard,
-            progress,
-        )?),
-        Kind::Fields => ShardData::Fields(render_fields_shard(
-            &p.scene,
-            &field_options(p),
-            shard,
-            progress,
-        )?),
-        Kind::Wave => {
-            let scene = p.box_scene().map_err(|e| p.in_document(e))?;
-            ShardData::Wave(render_wave_shard(
-                &scene,
-                &wave_options(p),
+    let data =
+        match kind {
+            // The readings of detectors: the detector render's batch sums.
+            Kind::Intensity if p.scene.has_detectors() => ShardData::Moments(
+                render_detectors_shard(&p.scene, &covariance_options(p), shard, progress)?,
+            ),
+            Kind::Covariance => {
+                let m = render_covariance_shard(&p.scene, &covariance_options(p), shard, progress)?;
+                // The shard's share of the means: the merge computes none of them.
+                let pairs = shard.units(p.pairs());
+                let Means { values, warning } = means(p, pairs.clone(), progress)?;
+                ShardData::Covariance(m, PairShare { pairs, values }, warning)
+            }
+            Kind::Intensity => ShardData::Moments(render_intensity_shard(
+                &p.scene,
+                &covariance_options(p),
                 shard,
                 progress,
-            )?)
-        }
-    };
+            )?),
+            Kind::Fields => ShardData::Fields(render_fields_shard(
+                &p.scene,
+                &field_options(p),
+                shard,
+                progress,
+            )?),
+            Kind::Wave => {
+                let scene = p.box_scene().map_err(|e| p.in_document(e))?;
+                ShardData::Wave(render_wave_shard(
+                    &scene,
+                    &wave_options(p),
+                    shard,
+                    progress,
+                )?)
+            }
+        };
     ShardFile::new(p, kind, data, start.elapsed().as_secs_f64())
 }
 

@@ -3,7 +3,7 @@
 use crate::read::Expected;
 use crate::{Header, Kind, Means, Outcome, RunError, ShardData, ShardFile, run_hash};
 use num_complex::Complex64;
-use speckle_estimators::{CovarianceMerge, EstimatorError, FieldShard};
+use speckle_estimators::{CovarianceMerge, EstimatorError, FieldShard, detector_readings};
 use speckle_scene::{Overrides, Problem, load_str_unquoted};
 use speckle_stats::{NoProgress, PairShare, ShardError};
 use speckle_wave::WaveShard;
@@ -161,7 +161,10 @@ fn merge_sources(
                     .add(&m)?;
                 pool.extend(m.moments.batches.into_iter().flat_map(|b| b.sums));
             }
-            let est = merge.ok_or(ShardError::NoShards)?.finish()?;
+            let mut est = merge.ok_or(ShardError::NoShards)?.finish()?;
+            if problem.scene.has_detectors() {
+                est = detector_readings(est, problem.pairs());
+            }
             if kind == Kind::Covariance {
                 let shares: Vec<&PairShare> = shares.iter().collect();
                 let values = PairShare::assemble(&shares, problem.pairs(), |r| {

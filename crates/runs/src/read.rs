@@ -20,7 +20,7 @@ use crate::file::{MAGIC, VERSION, bad, layout_of};
 use crate::{Header, Kind, RunError, ShardData, ShardFile, field_options};
 use num_complex::Complex64;
 use serde_json::Value;
-use speckle_estimators::{CovarianceShard, FieldShard, shard_spec};
+use speckle_estimators::{CovarianceShard, FieldShard, detector_shard_spec, shard_spec};
 use speckle_scene::Problem;
 use speckle_stats::{
     BatchSums, CMatrix, Layout, MomentsSpec, PairShare, PartialMoments, PartialRows, Shard,
@@ -117,7 +117,12 @@ impl Expected {
     pub(crate) fn of(p: &Problem, kind: Kind) -> Result<Self, RunError> {
         let j = p.pairs();
         let moments = |diagonal| {
-            let spec = shard_spec(j, &crate::covariance_options(p), diagonal);
+            let opts = crate::covariance_options(p);
+            let spec = if p.scene.has_detectors() {
+                detector_shard_spec(&p.scene, &opts)
+            } else {
+                shard_spec(j, &opts, diagonal)
+            };
             Self {
                 shape: Shape::Moments(spec),
                 total: spec.batches().count(),

@@ -41,14 +41,7 @@ pub fn checked_motion(
     command: &str,
 ) -> anyhow::Result<MotionSettings> {
     let motion = temporal::sequence_motion(p).map_err(error::runs)?;
-    if run.shard.is_some() {
-        return Err(p
-            .in_document(SceneError::InvalidInput {
-                field: "shard".into(),
-                reason: format!("`speckle {command}` renders whole runs only (no --shard)"),
-            })
-            .into());
-    }
+    run.whole_only(p, command)?;
     Ok(motion.clone())
 }
 

@@ -26,12 +26,7 @@ pub struct FitArgs {
 
 pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     let (p, run) = a.render.load()?;
-    if run.shard.is_some() {
-        return Err(InputError(
-            "--shard: a fit renders its paths whole (its records stay in memory)".into(),
-        )
-        .into());
-    }
+    run.whole_only(&p, "fit")?;
     // Everything about the fit and the measurement is checked before the render.
     let settings = runs_fit::settings(&p).map_err(error::runs)?;
     let data = match &a.data {

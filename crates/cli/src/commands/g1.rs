@@ -32,6 +32,7 @@ pub struct G1Args {
 
 pub fn run(a: &G1Args) -> anyhow::Result<()> {
     let (p, run) = a.render.load()?;
+    run.whole_only(&p, "g1")?;
     temporal::motion(&p).map_err(error::runs)?;
     // The reference is read and checked against the scene before any work.
     let reference = match &a.reference {

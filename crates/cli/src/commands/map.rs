@@ -13,6 +13,7 @@ const MIN_PNG_SIDE: usize = 256;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
+    run.whole_only(&p, "map")?;
     temporal::motion(&p).map_err(error::runs)?;
     let mut staged = plan(&p, estimate(&p, Command::G1), run)?;
     let (m, wall) = run.timed(&p, p.render.paths, "paths", error::runs, |pr| {

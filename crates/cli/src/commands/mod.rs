@@ -222,6 +222,23 @@ pub struct RunOptions {
 }
 
 impl RunOptions {
+    /// An error naming `shard` when `--shard` was given to `speckle command`, which renders
+    /// whole runs only (covariance, intensity, fields and wave shard).
+    pub fn whole_only(&self, p: &Problem, command: &str) -> anyhow::Result<()> {
+        match self.shard {
+            None => Ok(()),
+            Some(_) => Err(p
+                .in_document(speckle::scene::SceneError::InvalidInput {
+                    field: "shard".into(),
+                    reason: format!(
+                        "`speckle {command}` renders whole runs only (no --shard; covariance, \
+                         intensity, fields and wave are sharded)"
+                    ),
+                })
+                .into()),
+        }
+    }
+
     /// Runs `render` under a progress bar over `total` units of work (`unit`: "paths",
     /// "configurations"); returns its result, mapped by `error`, and its wall time.
     pub fn timed<T, E>(

@@ -25,6 +25,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         no_png: a.no_png,
         ..Overrides::default()
     })?;
+    run.whole_only(&p, "single")?;
     let j = p.covariance_size(threads()).map_err(in_scene(&p))?;
     let mut staged = plan(&p, estimate(&p, Command::Single), run)?;
     let opts = options(&p);

@@ -14,14 +14,7 @@ use speckle::studies::curves::{Curve, Figure};
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
     temporal::tracking_check(&p).map_err(error::runs)?;
-    if run.shard.is_some() {
-        return Err(p
-            .in_document(speckle::scene::SceneError::InvalidInput {
-                field: "shard".into(),
-                reason: "`speckle tracking` renders whole runs only (no --shard)".into(),
-            })
-            .into());
-    }
+    run.whole_only(&p, "tracking")?;
     let mut staged = plan(&p, estimate(&p, Command::Tracking), run)?;
     let nl = p.motion.as_ref().map_or(0, |m| m.lags.len());
     let total = p.render.paths.saturating_mul(nl as u64 + 2);

@@ -42,11 +42,12 @@
 //! `lambda / l*` wide); the reading is the incoherent sum.
 
 use crate::records::PathRecords;
-use crate::{CovarianceOptions, EstimatorError, Scene};
+use crate::{CovarianceEstimate, CovarianceOptions, CovarianceShard, EstimatorError, Scene};
+use render::Rendered;
 use speckle_medium::Medium;
 use speckle_motion::MotionModel;
 use speckle_phase::PhaseFunction;
-use speckle_stats::Progress;
+use speckle_stats::{MomentsSpec, Progress, Shard};
 
 mod estimate;
 mod pilot;
@@ -92,7 +93,60 @@ where
     M: Medium + Sync,
     P: PhaseFunction + Sync,
 {
-    Ok(render::render(scene, motion, opts, techniques, None, progress)?.map(|(e, _)| e))
+    Ok(
+        match render::render(scene, motion, opts, techniques, None, None, progress)? {
+            Some(Rendered::Whole(w)) => Some(w.0),
+            Some(Rendered::Shard(_)) => unreachable!("a whole run gives an estimate"),
+            None => None,
+        },
+    )
+}
+
+/// Renders shard `shard` of the static [`render_detectors`] (the readings that `speckle
+/// intensity` writes): the batch sums of the shard's batches of the single run's split, so
+/// that merging every shard ([`crate::CovarianceShard::merge`] or [`crate::CovarianceMerge`])
+/// and taking [`detector_readings`] of the result gives bitwise the single run's
+/// [`DetectorEstimate::readings`], for any number of shards and threads. Each shard holds
+/// [`detector_shard_spec`]. A cancelled render is [`EstimatorError::Cancelled`].
+pub fn render_detectors_shard<M, P>(
+    scene: &Scene<M, P>,
+    opts: &CovarianceOptions,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<CovarianceShard, EstimatorError>
+where
+    M: Medium + Sync,
+    P: PhaseFunction + Sync,
+{
+    let techniques = DetectorTechniques::default();
+    match render::render(scene, None, opts, techniques, None, Some(shard), progress)? {
+        Some(Rendered::Shard(moments)) => Ok(CovarianceShard { moments }),
+        Some(Rendered::Whole(..)) => unreachable!("a shard run gives a shard"),
+        None => Err(EstimatorError::Cancelled),
+    }
+}
+
+/// The batch sums every shard of [`render_detectors_shard`] of `scene` holds (what a merge
+/// checks a shard file's header against): `J (1 + M)` entries, the readings of the `J` pairs
+/// and the decay sums of the medium's `M` materials.
+pub fn detector_shard_spec<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    opts: &CovarianceOptions,
+) -> MomentsSpec {
+    render::moments_spec(scene.len(), 1, scene.medium().materials(), opts.paths)
+}
+
+/// The readings of a merged static detector render of `pairs` pairs (the merge of every shard
+/// of [`render_detectors_shard`]): its first `pairs` entries, as [`DetectorEstimate::readings`]
+/// gives them.
+pub fn detector_readings(merged: CovarianceEstimate, pairs: usize) -> CovarianceEstimate {
+    let r = 0..pairs.min(merged.total.value.rows());
+    CovarianceEstimate {
+        single: render::rows(&merged.single, r.clone()),
+        multiple: render::rows(&merged.multiple, r.clone()),
+        total: render::rows(&merged.total, r),
+        paths: merged.paths,
+    }
 }
 
 /// [`render_detectors`] (default techniques, the same estimate bitwise) that also keeps the
@@ -124,13 +178,19 @@ where
                 reason: format!("pair {p} does not exist ({j} pairs)"),
             })? = true;
     }
-    Ok(render::render(
-        scene,
-        motion,
-        opts,
-        DetectorTechniques::default(),
-        Some(keep),
-        progress,
-    )?
-    .map(|(e, r)| (e, r.expect("records were kept"))))
+    Ok(
+        match render::render(
+            scene,
+            motion,
+            opts,
+            DetectorTechniques::default(),
+            Some(keep),
+            None,
+            progress,
+        )? {
+            Some(Rendered::Whole(w)) => Some((w.0, w.1.expect("records were kept"))),
+            Some(Rendered::Shard(_)) => unreachable!("a whole run gives an estimate"),
+            None => None,
+        },
+    )
 }

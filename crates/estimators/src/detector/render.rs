@@ -15,7 +15,9 @@ use speckle_motion::{Motion, MotionModel};
 use speckle_paths::{Exit, ForkSink, PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
-use speckle_stats::{BatchSum, Layout, Poll, Progress, batch_moments};
+use speckle_stats::{
+    BatchSum, Layout, MomentsRun, MomentsSpec, PartialMoments, Poll, Progress, Shard, run_moments,
+};
 
 /// The largest memory the records of [`super::render_detector_records`] may take (bytes): a render
 /// whose records would take more stops with an error naming `render.paths`.
@@ -307,15 +309,49 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
     }
 }
 
-/// The render of [`render_detectors_with`], with the records when `record`.
+/// What [`render`] gives: the whole run's estimate (with the records when kept), or the batch
+/// sums of one shard.
+pub(super) enum Rendered {
+    /// The estimate and the records.
+    Whole(Box<(DetectorEstimate, Option<PathRecords>)>),
+    /// One shard's batch sums.
+    Shard(PartialMoments),
+}
+
+/// What a detector render of `j` pairs at `nl` lags in a medium of `nm` materials sums over
+/// `paths` paths: per pair, `C(t)` at each lag then the decay sum of each material (`J (L + M)`
+/// entries, pair-major within each block), single and multiple scattering and their total.
+pub(super) fn moments_spec(j: usize, nl: usize, nm: usize, paths: u64) -> MomentsSpec {
+    MomentsSpec {
+        paths,
+        j: j * (nl + nm),
+        layout: Layout::GeneralDiagonal,
+        parts: 2,
+        with_total: true,
+    }
+}
+
+/// The entries `r` of a `J (L + M)` column (the correlations, or the decay sums).
+pub(super) fn rows(m: &MatrixEstimate, r: std::ops::Range<usize>) -> MatrixEstimate {
+    MatrixEstimate {
+        value: CMatrix::from_vec(r.len(), 1, r.clone().map(|e| m.value.get(e, 0)).collect()),
+        std_error: CMatrix::from_vec(r.len(), 1, r.map(|e| m.std_error.get(e, 0)).collect()),
+        samples: m.samples,
+    }
+}
+
+/// The render of the public functions: the whole run (`shard` `None`) or one shard of it (never
+/// with records), keeping the records of the pairs `keep` when given.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn render<M, P>(
     scene: &Scene<M, P>,
     motion: Option<(&MotionModel, &[f64])>,
     opts: &CovarianceOptions,
     techniques: DetectorTechniques,
     keep: Option<Vec<bool>>,
+    shard: Option<Shard>,
     progress: &dyn Progress,
-) -> Result<Option<(DetectorEstimate, Option<PathRecords>)>, EstimatorError>
+) -> Result<Option<Rendered>, EstimatorError>
 where
     M: Medium + Sync,
     P: PhaseFunction + Sync,
@@ -425,26 +461,15 @@ where
             }
         }
     };
-    let Some((parts, Some(total))) = batch_moments(
-        opts.paths,
-        j * (nl + nm),
-        Layout::GeneralDiagonal,
-        2,
-        true,
-        init,
-        path,
-        progress,
-    ) else {
-        return Ok(None);
+    let spec = moments_spec(j, nl, nm, opts.paths);
+    let (parts, total) = match run_moments(spec, shard, init, path, progress) {
+        None => return Ok(None),
+        Some(MomentsRun::Shard(m)) => return Ok(Some(Rendered::Shard(m))),
+        Some(MomentsRun::Estimate(parts, total)) => (parts, total.expect("a total was asked")),
     };
     let [single, multiple]: [MatrixEstimate; 2] =
         parts.try_into().expect("two parts were estimated");
     // The first J L rows are the correlations, the next J M the decay sums.
-    let rows = |m: &MatrixEstimate, r: std::ops::Range<usize>| MatrixEstimate {
-        value: CMatrix::from_vec(r.len(), 1, r.clone().map(|e| m.value.get(e, 0)).collect()),
-        std_error: CMatrix::from_vec(r.len(), 1, r.map(|e| m.std_error.get(e, 0)).collect()),
-        samples: m.samples,
-    };
     let (c, d) = (0..j * nl, j * nl..j * (nl + nm));
     let records = if record {
         let bytes = record_bytes.into_inner();
@@ -485,7 +510,7 @@ where
     } else {
         None
     };
-    Ok(Some((
+    Ok(Some(Rendered::Whole(Box::new((
         DetectorEstimate {
             lags,
             pairs: j,
@@ -498,5 +523,5 @@ where
             paths: opts.paths,
         },
         records,
-    )))
+    )))))
 }
