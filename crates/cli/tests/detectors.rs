@@ -72,10 +72,22 @@ fn field_commands_refuse_detectors_naming_sensors() {
     let dir = tempfile::tempdir().unwrap();
     let s = write(dir.path(), "f.toml", &scene(FIBRE, ""));
     let s = s.to_str().unwrap();
-    for cmd in ["covariance", "fields", "mean", "single", "wave", "map"] {
+    for cmd in [
+        "covariance",
+        "fields",
+        "mean",
+        "single",
+        "wave",
+        "map",
+        "tracking",
+    ] {
         let o = speckle(dir.path(), &[cmd, s, "--out", "out", "-q"]);
         assert_eq!(o.status.code(), Some(2), "{cmd}: {}", stderr(&o));
-        assert!(stderr(&o).contains("sensors"), "{cmd}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("f.toml: sensors: the sensors are detectors"),
+            "{cmd}: {}",
+            stderr(&o)
+        );
     }
     assert!(!dir.path().join("out").exists());
 }

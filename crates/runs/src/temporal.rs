@@ -300,6 +300,10 @@ pub struct Map {
 /// error naming `motion` when it has none).
 pub fn map(p: &Problem, progress: &dyn Progress) -> Result<Map, RunError> {
     let motion = motion(p)?;
+    // A map correlates the fields of pairs: detectors have no field.
+    p.scene
+        .check_field_sensors()
+        .map_err(|e| RunError::Load(p.in_document(e)))?;
     let opts = crate::covariance_options(p);
     let k = p.pairs();
     let entries = Entries::List((0..k).map(|j| (0, j)).collect());
@@ -458,6 +462,10 @@ struct TrackingSetup<'a> {
 /// point sensor (`sources`, `sensors`, `sources[0].type`, `sensors[0].type`).
 fn tracking_setup(p: &Problem) -> Result<TrackingSetup<'_>, RunError> {
     let motion = motion(p)?;
+    // Tracking correlates the fields of two sensor positions: detectors have no field.
+    p.scene
+        .check_field_sensors()
+        .map_err(|e| RunError::Load(p.in_document(e)))?;
     let bad = |field: &str, reason: String| {
         RunError::Load(p.in_document(SceneError::InvalidInput {
             field: field.into(),

@@ -30,7 +30,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     })?;
     let wave_error = |e| error::wave(e, &p.origin);
     // The solver's own checks first (isotropic phase, sigma_a = 0, the size of the medium).
-    let scene = p.box_scene()?;
+    let scene = p.box_scene().map_err(in_scene(&p))?;
     let rr = p.render.configurations;
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
     number_density(&scene).map_err(wave_error)?;
@@ -76,7 +76,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 /// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
 pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
-    let scene = p.box_scene()?;
+    let scene = p.box_scene().map_err(in_scene(&p))?;
     let (j, rr) = (p.pairs(), p.render.configurations);
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
     let density = number_density(&scene).map_err(wave_error)?;
