@@ -210,7 +210,7 @@ impl Trajectory<'_> {
     /// its drift takes it out of the box.
     fn draw<M: Medium>(&mut self, medium: &M, x: DVec3) {
         let f = self.frames;
-        let motion = f.model.at(medium, x);
+        let motion = f.model.of_material(medium.material(x));
         let scale = (2.0 * motion.diffusion).sqrt();
         let mut w = DVec3::ZERO;
         let mut last = 0.0;
@@ -366,14 +366,11 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
             ),
         ));
     }
-    let model = model
-        .clone()
-        .validated(scene.medium())
-        .map_err(|e| match e {
-            speckle_motion::MotionError::InvalidInput { field, reason } => {
-                invalid(format!("motion.{field}"), reason)
-            }
-        })?;
+    let model = scene.motion_fits(model).map_err(|e| match e {
+        speckle_motion::MotionError::InvalidInput { field, reason } => {
+            invalid(format!("motion.{field}"), reason)
+        }
+    })?;
     let mut distinct = times.to_vec();
     distinct.sort_by(f64::total_cmp);
     distinct.dedup();

@@ -53,7 +53,9 @@ mod fields;
 mod lag_powers;
 mod records;
 
-pub use correlation::{CorrelationEstimate, Entries, MAX_STORED_ENTRIES, render_correlation};
+pub use correlation::{
+    CorrelationEstimate, Entries, MAX_STORED_ENTRIES, MotionFactor, render_correlation,
+};
 pub use covariance::{
     CovarianceEstimate, CovarianceMerge, CovarianceOptions, CovarianceShard, render_covariance,
     render_covariance_shard, render_covariance_with, render_intensity, render_intensity_shard,

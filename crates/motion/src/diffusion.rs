@@ -14,7 +14,7 @@
 ///
 /// ```
 /// use speckle_motion::diffusion::{correlation, g1};
-/// // The note's reference values (lambda = 500 nm, l_t = 1 mm, delta = 2 cm, D = 1e-7 cm^2/s).
+/// // Reference values of the diffusion model (lambda = 500 nm, l_t = 1 mm, delta = 2 cm, D = 1e-7 cm^2/s).
 /// let k = std::f64::consts::TAU / 500e-7;
 /// assert!((correlation(k, 1e-7, 0.1, 2.0, 0.0) - 6.5295e-3).abs() < 1e-6);
 /// assert!((g1(k, 1e-7, 0.1, 2.0, 1e-6) - 0.4184).abs() < 1e-4);
@@ -36,7 +36,7 @@ pub fn g1(k: f64, d: f64, lt: f64, delta: f64, t: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// The note's table (Sec. 14): G1(0) and g1 values for l_t = 1 mm at 500 nm.
+    /// Reference values: G1(0) and g1 for l_t = 1 mm at 500 nm.
     #[test]
     fn reference_values() {
         let k = std::f64::consts::TAU / 500e-7;

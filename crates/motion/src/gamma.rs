@@ -1,8 +1,8 @@
 //! The decorrelation factor of one vertex (Eq. 14) and the momentum transfers it is evaluated
 //! at: interior vertices (Eq. 13) and the first and last vertices with the averaged endpoint
-//! directions (`shared/notes/spatiotemporal-2023.md` Sec. 5.3).
+//! directions (derived below).
 //!
-//! Derivation (the note's check, restated): with the two copies of a path at `o - Delta/2` and
+//! Derivation: with the two copies of a path at `o - Delta/2` and
 //! `o + Delta/2`, the difference of their path lengths is, to first order in `Delta`,
 //! `-(G_1 + G_2) . Delta / 2`, `G_c` the gradient of copy `c`'s length with respect to the
 //! vertex. The vertex's factor is the Gaussian average `E[exp(i k q . Delta)]` over
@@ -21,7 +21,7 @@ use num_complex::Complex64;
 ///
 /// ```
 /// use speckle_motion::{Motion, gamma};
-/// use speckle_medium::DVec3;
+/// use speckle_motion::glam::DVec3;
 /// // Back-scattering (|q|^2 = 4) of a diffusing scatterer: exp(-4 k^2 D t).
 /// let m = Motion::brownian(0.015).unwrap();
 /// let k = std::f64::consts::TAU;
@@ -57,7 +57,7 @@ pub fn sensor_gradient(dir: DVec3) -> DVec3 {
 
 /// The momentum transfer of the first vertex of a path of at least two vertices, whose two
 /// copies have leg gradients `g1`, `g2` there and which leaves along `w1`:
-/// `w1 - (g1 + g2) / 2` (Sec. 5.3 of the note; `w1 - s` when both copies share their source).
+/// `w1 - (g1 + g2) / 2` (`w1 - s` when both copies share their source).
 #[inline]
 pub fn first_transfer(w1: DVec3, g1: DVec3, g2: DVec3) -> DVec3 {
     w1 - 0.5 * (g1 + g2)
@@ -82,7 +82,7 @@ pub fn single_transfer(g1: DVec3, g2: DVec3) -> DVec3 {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use speckle_stats::PathRng;
+    use speckle_rng::PathRng;
 
     fn unit(v: [f64; 3]) -> DVec3 {
         DVec3::from_array(v).normalize()

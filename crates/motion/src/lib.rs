@@ -5,18 +5,18 @@
 //! - [`Motion`]: Brownian diffusion `D` (length^2 per time unit) and a drift velocity `U`
 //!   (length per time unit) of one material; a scatterer moves by
 //!   `Delta_t = t U + w sqrt(2 D |t|)`, `w ~ N(0, I)` (Eq. 1) over a time `t`.
-//! - [`MotionModel`]: the motion of every material of a medium (uniform, or one per material of
-//!   a [`speckle_medium::VoxelGrid`] built from materials, looked up by
-//!   [`speckle_medium::Medium::material`]).
+//! - [`MotionModel`]: the motion of every material of a medium (uniform, or one per material,
+//!   by the index a medium gives each point: `speckle_medium::Medium::material`).
 //! - [`gamma`]: the decorrelation factor of one vertex, Eq. 14,
 //!   `gamma = exp(-k^2 D |t| |q|^2 + i k t q . U)`, with the momentum transfer `q` of the
 //!   vertex: `w_out - w_in` inside a path ([`interior_transfer`]); at the first and last
 //!   vertices, where the two copies of a path connect to different endpoints, the *averaged*
-//!   endpoint directions of `shared/notes/spatiotemporal-2023.md` Sec. 5.3
+//!   endpoint directions (derived in the docs of [`gamma()`])
 //!   ([`first_transfer`], [`last_transfer`], [`single_transfer`]).
-//! - [`MotionFactor`]: the interior part of a path's decorrelation as a
-//!   [`speckle_paths::PathFactor`] with one channel per time lag (the interior sums `Y^D` and
-//!   `Q^U` of the note, Sec. 6), so that every lag is evaluated from the same traced path.
+//! - [`MotionState`]: the interior part of a path's decorrelation as two running sums (`Y^D` and
+//!   `Q^U`) that any tracer keeps along its paths in plain data, so that
+//!   every lag is evaluated from the same traced path (the project's tracer keeps it through
+//!   `speckle_estimators::MotionFactor`).
 //! - [`correlation`]: `g1`, `g2 = 1 + beta |g1|^2` (Siegert) and the speckle contrast `K(T)`
 //!   over an exposure `T`; [`diffusion`]: the correlation diffusion equation of Eq. 35.
 //!
@@ -34,7 +34,7 @@
 //! A path's two copies share their interior vertices; at an end vertex each copy is connected
 //! to its own endpoint. The *leg gradient* of a copy at an end vertex is the gradient of that
 //! copy's endpoint leg length with respect to the vertex: for a source leg the propagation
-//! direction into the vertex ([`speckle_medium::DVec3`] `s = unit(x - i)`, or the plane wave's
+//! direction into the vertex (`s = unit(x - i)`, or the plane wave's
 //! direction), for a sensor leg minus the direction leaving the vertex (`-e`, `e = unit(v - x)`
 //! or the far-field direction). A reversed path (coherent backscattering) connects its first
 //! vertex to the sensor and its last to the source; its gradients follow the same rule.
@@ -42,19 +42,26 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+//!
+//! # Dependencies
+//!
+//! Plain data only: [`glam`] vectors and [`num_complex`] numbers (both re-exported, so that an
+//! embedder need not pin their versions) and `thiserror`; no other crate of the workspace.
+
 pub mod correlation;
 pub mod diffusion;
-mod factor;
 mod gamma;
+mod state;
 
-pub use factor::{MotionFactor, MotionState};
 pub use gamma::{
     first_transfer, gamma, interior_transfer, last_transfer, sensor_gradient, single_transfer,
     source_gradient,
 };
+pub use glam;
+pub use num_complex;
+pub use state::MotionState;
 
 use glam::DVec3;
-use speckle_medium::{Dimension, Medium};
 
 /// Errors of motion models and correlation helpers; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -82,7 +89,7 @@ pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Mo
 ///
 /// ```
 /// use speckle_motion::Motion;
-/// use speckle_medium::DVec3;
+/// use speckle_motion::glam::DVec3;
 /// let m = Motion::new(1e-6, DVec3::new(4.0, 0.0, 0.0)).unwrap();
 /// assert!(m.is_moving() && m.has_drift());
 /// assert!(Motion::new(-1.0, DVec3::ZERO).is_err());
@@ -141,19 +148,18 @@ impl Motion {
     }
 }
 
-/// The motion of every material of a medium: one [`Motion`] for all, or one per material
-/// ([`Medium::material`]), as the 2023 paper's heterogeneous scenes (dynamic rods in a static
-/// cube, Fig. 5; static and dynamic layers, Fig. 10) need.
+/// The motion of every material of a medium: one [`Motion`] for all, or one per material (by
+/// the material index a medium gives each point), as the 2023 paper's heterogeneous scenes
+/// (dynamic rods in a static cube, Fig. 5; static and dynamic layers, Fig. 10) need.
 ///
 /// ```
 /// use speckle_motion::{Motion, MotionModel};
-/// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-/// let b = HomogeneousBox::new(Aabb::centered(DVec3::ZERO, DVec3::ONE).unwrap(), 1.0, 0.0).unwrap();
-/// let m = MotionModel::uniform(Motion::brownian(0.1).unwrap()).validated(&b).unwrap();
-/// assert_eq!(m.at(&b, DVec3::ZERO).diffusion, 0.1);
+/// // One material, three dimensions.
+/// let m = MotionModel::uniform(Motion::brownian(0.1).unwrap()).validated(1, false).unwrap();
+/// assert_eq!(m.of_material(0).diffusion, 0.1);
 /// // A model of two materials does not fit a medium of one.
 /// let two = MotionModel::per_material(vec![Motion::STATIC, Motion::brownian(1.0).unwrap()]).unwrap();
-/// assert!(two.validated(&b).is_err());
+/// assert!(two.validated(1, false).is_err());
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotionModel {
@@ -187,10 +193,10 @@ impl MotionModel {
         Ok(Self { materials })
     }
 
-    /// Checks the model against a medium: a uniform model fits any medium, a per-material one
-    /// needs one motion per material; drifts of a flatland medium lie in the plane `z = 0`.
-    pub fn validated<M: Medium>(self, medium: &M) -> Result<Self, MotionError> {
-        let n = medium.materials();
+    /// Checks the model against a medium of `n` materials (`flatland`: a 2D medium): a uniform
+    /// model fits any medium, a per-material one needs one motion per material; drifts of a
+    /// flatland medium lie in the plane `z = 0`.
+    pub fn validated(self, n: usize, flatland: bool) -> Result<Self, MotionError> {
         if self.materials.len() != 1 && self.materials.len() != n {
             return Err(invalid(
                 "materials",
@@ -203,7 +209,7 @@ impl MotionModel {
         }
         for (i, m) in self.materials.iter().enumerate() {
             m.validated(&format!("materials[{i}]"))?;
-            if medium.dimension() == Dimension::Two && m.drift.z != 0.0 {
+            if flatland && m.drift.z != 0.0 {
                 return Err(invalid(
                     format!("materials[{i}].drift"),
                     format!("must have z = 0 in a flatland medium (got {})", m.drift),
@@ -225,16 +231,6 @@ impl MotionModel {
             &self.materials[0]
         } else {
             &self.materials[material]
-        }
-    }
-
-    /// The motion of the scatterers at `x` in `medium`.
-    #[inline]
-    pub fn at<M: Medium>(&self, medium: &M, x: DVec3) -> &Motion {
-        if self.materials.len() == 1 {
-            &self.materials[0]
-        } else {
-            &self.materials[medium.material(x)]
         }
     }
 
@@ -279,32 +275,33 @@ pub fn check_lags(field: &str, lags: &[f64]) -> Result<(), MotionError> {
     Ok(())
 }
 
+/// The examples of the crate's README.md, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use speckle_medium::{Aabb, HomogeneousBox, Material, VoxelGrid};
 
     #[test]
-    fn models_follow_the_materials_of_a_grid() {
-        let b = Aabb::new(DVec3::ZERO, DVec3::new(2.0, 1.0, 1.0)).unwrap();
-        let mats = vec![Material::single(1.0, 0.0), Material::single(2.0, 0.0)];
-        let g = VoxelGrid::from_materials(b, [2, 1, 1], vec![0, 1], mats).unwrap();
-        assert_eq!(g.materials(), 2);
-        assert_eq!(g.material(DVec3::new(0.5, 0.5, 0.5)), 0);
-        assert_eq!(g.material(DVec3::new(1.5, 0.5, 0.5)), 1);
+    fn models_give_each_material_its_motion() {
         let fast = Motion::new(2.0, DVec3::X).unwrap();
         let m = MotionModel::per_material(vec![Motion::STATIC, fast])
             .unwrap()
-            .validated(&g)
+            .validated(2, false)
             .unwrap();
-        assert_eq!(*m.at(&g, DVec3::new(0.5, 0.5, 0.5)), Motion::STATIC);
-        assert_eq!(*m.at(&g, DVec3::new(1.5, 0.5, 0.5)), fast);
+        assert_eq!(*m.of_material(0), Motion::STATIC);
+        assert_eq!(*m.of_material(1), fast);
         assert!(m.has_drift() && m.is_moving());
         assert_eq!(m.max_speed(), 1.0);
+        // A uniform model serves every material.
+        let u = MotionModel::uniform(fast).validated(5, false).unwrap();
+        assert_eq!(*u.of_material(3), fast);
         // Three motions for two materials are refused, naming the field.
         let e = MotionModel::per_material(vec![Motion::STATIC; 3])
             .unwrap()
-            .validated(&g)
+            .validated(2, false)
             .unwrap_err();
         assert!(e.to_string().starts_with("materials:"), "{e}");
     }
@@ -326,10 +323,8 @@ mod tests {
         assert!(e.to_string().starts_with("materials[1].diffusion"), "{e}");
         assert!(MotionModel::per_material(vec![]).is_err());
         // A flatland drift must lie in the plane.
-        let flat = Aabb::flat(glam::DVec2::ZERO, glam::DVec2::ONE).unwrap();
-        let m = HomogeneousBox::new(flat, 1.0, 0.0).unwrap();
         let e = MotionModel::uniform(Motion::new(0.0, DVec3::Z).unwrap())
-            .validated(&m)
+            .validated(1, true)
             .unwrap_err();
         assert!(e.to_string().starts_with("materials[0].drift"), "{e}");
         assert!(check_lags("lags", &[]).is_err());

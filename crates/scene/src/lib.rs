@@ -24,7 +24,8 @@
 use num_complex::Complex64;
 use rayon::prelude::*;
 use speckle_endpoints::{Detector, Emitter, Pair, Sensor, Source};
-use speckle_medium::{DVec3, Interface, Medium};
+use speckle_medium::{DVec3, Dimension, Interface, Medium};
+use speckle_motion::{MotionError, MotionModel};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
 use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
@@ -303,6 +304,13 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// included); empty for other scenes, whose sources are [`Scene::sources`].
     pub fn emitters(&self) -> &[Emitter] {
         &self.emitters
+    }
+
+    /// `model` checked against the scene's medium ([`MotionModel::validated`]: one motion for
+    /// all materials or one per material; drifts in the plane in flatland).
+    pub fn motion_fits(&self, model: &MotionModel) -> Result<MotionModel, MotionError> {
+        let flat = self.medium.dimension() == Dimension::Two;
+        model.clone().validated(self.medium.materials(), flat)
     }
 
     /// The detectors, when the scene's sensors are detectors ([`Scene::with_detectors`]);

@@ -117,9 +117,8 @@ pub fn render_wave_motion(
             "the wave solver's box is one material: give one motion".into(),
         ));
     }
-    let model = model
-        .clone()
-        .validated(scene.medium())
+    let model = scene
+        .motion_fits(model)
         .map_err(|e| invalid("motion", e.to_string()))?;
     let motion = model.motions()[0];
     let r = options.configurations;

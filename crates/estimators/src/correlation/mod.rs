@@ -5,7 +5,7 @@
 //! A path's contribution to the static covariance (Alg. 1 of the 2019 paper) is multiplied by
 //! the decorrelation of each of its vertices (Eq. 14). The interior vertices give a factor that
 //! does not depend on the pair, kept as two sums along the path by the state of
-//! [`speckle_motion::MotionFactor`] (a [`speckle_paths::PathFactor`]; its state gives the
+//! [`MotionFactor`] (a [`speckle_paths::PathFactor`]; its state gives the
 //! interior factor at every lag, [`speckle_motion::MotionState::interior`]);
 //! the first and last vertices give factors that depend on the endpoints of *both* copies of
 //! the path (the averaged endpoint directions of `shared/notes/spatiotemporal-2023.md`
@@ -19,7 +19,7 @@
 //! Drift is applied by the *hybrid exact-drift* scheme (the note's recommendation, and what the
 //! authors' code does): copy 1 connects its end vertices to its endpoints from
 //! `x - t U(x) / 2`, copy 2 from `x + t U(x) / 2` (`A(-/+t/2)`, exact lengths, attenuations and
-//! amplitudes), the interior drift is the telescoped sum of [`speckle_motion::MotionFactor`].
+//! amplitudes), the interior drift is the telescoped sum of [`MotionFactor`].
 //! Both copies evaluate their Brownian end transfers with their own displaced directions, so
 //! shifting the endpoints with the flow (`i + tU`, `v + tU`) reproduces the correlation of a
 //! medium without drift path by path (up to attenuation and boundary effects).
@@ -54,7 +54,10 @@
 //! legs serve both), and lags that are whole multiples of one step take their factors as powers
 //! of one exponential per term ([`crate::lag_powers`]), summed per batch.
 
+mod factor;
 mod sink;
+
+pub use factor::MotionFactor;
 
 use crate::connect::{Connector, Ends};
 use crate::lag_powers::{PowerSums, Powers, SlotSums};
@@ -65,7 +68,7 @@ use glam::DVec3;
 use num_complex::Complex64;
 use sink::*;
 use speckle_medium::Medium;
-use speckle_motion::{MotionFactor, MotionModel, MotionState};
+use speckle_motion::{MotionModel, MotionState};
 use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
@@ -171,9 +174,8 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
     }
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     speckle_motion::check_lags("lags", lags).map_err(motion_error)?;
-    let model = model
-        .clone()
-        .validated(scene.medium())
+    let model = scene
+        .motion_fits(model)
         .map_err(|e| match motion_error(e) {
             EstimatorError::InvalidInput { field, reason } => EstimatorError::InvalidInput {
                 field: format!("motion.{field}"),

@@ -81,7 +81,7 @@ struct Sink<'a, M: Medium, P> {
 impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
     fn motion_at(&self, x: DVec3) -> Motion {
         match self.motion {
-            Some(m) => *m.at(self.scene.medium(), x),
+            Some(m) => *m.of_material(self.scene.medium().material(x)),
             None => Motion::default(),
         }
     }
