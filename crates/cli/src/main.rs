@@ -72,9 +72,9 @@ enum Command {
     /// plot of the data against the fitted curve.
     Fit(fit::FitArgs),
     /// Spatio-temporal map of moving scatterers (Bar et al. 2023, Eqs. 36-37, Fig. 7): the
-    /// correlation C[0, k](t) of the first pair with every pair k at the scene's `[motion]`
+    /// correlation `C[0, k](t)` of the first pair with every pair `k` at the scene's `[motion]`
     /// lags (a line of sensors gives c(dx, t); pairs shifting source and sensor together, the
-    /// tracked map), and a PNG of |C[0, k](t)| / C[0, 0](0).
+    /// tracked map), and a PNG of `|C[0, k](t)| / C[0, 0](0)`.
     Map(covariance::Args),
     /// Tracking (Bar et al. 2023, Eqs. 38-39, Fig. 9): the temporal correlation of the scene's
     /// point source and point sensor in a medium drifting with U, without tracking, with both

@@ -2,12 +2,12 @@
 //!
 //! Every connection of a path vertex to an endpoint costs one attenuation `exp(-tau / 2)` and one
 //! phase factor `exp(i k L)`. The standard library's `exp` and `sin_cos` are scalar calls, which
-//! keep the connection loops of [`Endpoints`] from being vectorised; the kernels here are
+//! keep the connection loops of [`crate::Endpoints`] from being vectorised; the kernels here are
 //! written with only arithmetic, comparisons and bit operations (no branches, no table look-ups,
 //! no integer conversions), so that a loop over arrays of arguments compiles to packed SIMD
 //! instructions on the portable `x86-64` baseline (SSE2, two lanes) and wider on targets with
-//! AVX2 or AVX-512. The connection kernels built on them, [`Endpoints`] (a list of sources
-//! or sensors prepared for connecting many points) and its output [`Legs`], are re-exported
+//! AVX2 or AVX-512. The connection kernels built on them, [`crate::Endpoints`] (a list of sources
+//! or sensors prepared for connecting many points) and its output [`crate::Legs`], are re-exported
 //! here.
 //!
 //! - [`exp`]: `2^n * p(r)` with `n = round(x / ln 2)`, `r = x - n ln 2` (Cody-Waite, two-part

@@ -14,10 +14,10 @@
 //! everything about it: validation, the scalar leg, the vectorised kernel over a run of
 //! endpoints of the kind, its vacuum field (for the wave solver) and its part of the mean field:
 //!
-//! - [`plane`](crate::plane): directional endpoints, the plane-wave source and its reciprocal,
+//! - `plane`: directional endpoints, the plane-wave source and its reciprocal,
 //!   the far-field sensor;
-//! - [`point`](crate::point): the point source and its reciprocal, the point sensor;
-//! - [`gaussian`](crate::gaussian): the focused Gaussian beam (Bar et al. 2020) as a source and,
+//! - `point`: the point source and its reciprocal, the point sensor;
+//! - `gaussian`: the focused Gaussian beam (Bar et al. 2020) as a source and,
 //!   axis reversed, as a sensor: validation, its exact vacuum field, far-field amplitude and
 //!   sensor readings for the wave solver, its weighted aperture and exact `Upsilon` connection.
 //!   Its connection is not a leg times an amplitude: [`Endpoints::connect`] gives it its

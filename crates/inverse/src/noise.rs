@@ -8,9 +8,11 @@
 /// time, `<n> = rate T` per bin), coherence factor `beta` and decay rate `gamma` of
 /// `g1 = e^{-gamma tau}`:
 ///
-/// `sigma(tau) = sqrt(T / t) [beta^2 ((1 + e^{-2 gamma T}) (1 + e^{-2 gamma tau})
+/// ```text
+/// sigma(tau) = sqrt(T / t) [beta^2 ((1 + e^{-2 gamma T}) (1 + e^{-2 gamma tau})
 ///   + 2 m (1 - e^{-2 gamma T}) e^{-2 gamma tau}) / (1 - e^{-2 gamma T})
-///   + 2 beta (1 + e^{-2 gamma tau}) / <n> + (1 + beta e^{-gamma tau}) / <n>^2]^{1/2}`.
+///   + 2 beta (1 + e^{-2 gamma tau}) / <n> + (1 + beta e^{-gamma tau}) / <n>^2]^{1/2}
+/// ```
 ///
 /// Returns `None` unless every input is finite and positive (lags >= 0) and `gamma T > 0`.
 pub fn g2_stderr(

@@ -199,6 +199,14 @@ pub trait Medium: Send + Sync {
     }
 }
 
+// Re-exported so that an embedder uses the versions this crate was built with.
+pub use glam;
+
+/// The examples of the crate's README.md, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 #[cfg(test)]
 pub(crate) mod testing {
     //! Shared helpers of the statistical tests.

@@ -458,6 +458,15 @@ pub mod testing {
     }
 }
 
+// Re-exported so that an embedder uses the versions this crate was built with.
+pub use glam;
+pub use num_complex;
+
+/// The examples of the crate's README.md, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 #[cfg(test)]
 mod tests {
     use super::testing::*;

@@ -165,6 +165,11 @@ impl PathRng {
     }
 }
 
+/// The examples of the crate's README.md, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@
 //!   the run into exactly (bitwise) the single run's estimate, refusing shards of different
 //!   scenes, seeds or renders, overlapping shards, and naming missing ones by index.
 //! - temporal correlations of moving scatterers with what experiments read from them (`g1`,
-//!   `g2`, the speckle contrast): [`temporal`].
+//!   `g2`, the speckle contrast): [`temporal`](mod@temporal).
 //!
 //! Design decision: a shard is not a run of fewer paths but a range of the single run's own
 //! work units, and it keeps each unit's result (each batch's sums), so that a merge replays the

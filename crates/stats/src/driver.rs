@@ -104,7 +104,7 @@ pub fn for_each_path(
 /// connector) and calls `path(state, n, sums, poll)` for each of its paths `n` in order, which
 /// adds path `n` into one [`BatchSum`] per part (all of `layout`, vectors of length `j`) and may
 /// poll for cancellation inside the path; the batch sums are merged in batch order into
-/// [`Moments`] ([`MomentsReduction`]).
+/// moments ([`MomentsReduction`]).
 ///
 /// Returns the estimate of every part and, if `with_total`, of their sum (whose standard errors
 /// account for the correlation of the parts within a path); `None` if cancelled.

@@ -1,4 +1,4 @@
-//! Dynamic wavefront shaping (Bar et al. 2023, Sec. 8.6, Fig. 10; the observation of [47]) on
+//! Dynamic wavefront shaping (Bar et al. 2023, Sec. 8.6, Fig. 10; the observation of its ref. \[47\]) on
 //! sampled transmission-matrix sequences ([`speckle_estimators::render_field_sequence`]).
 //!
 //! The scene's sources are the modes of a spatial light modulator, one of its sensors the

@@ -1,7 +1,6 @@
 //! Complex von Mises-Fisher functions in log form and their closed-form operations.
 //!
-//! Everything here follows Bar et al. 2020, Sec. 5 (Eqs. 19-21 and 29) and `notes/nearfield-2020.md`
-//! Sec. 4.4. Values live in log form because `exp(|mu|)` overflows for the sharp lobes met in practice
+//! Everything here follows Bar et al. 2020, Sec. 5 (Eqs. 19-21 and 29). Values live in log form because `exp(|mu|)` overflows for the sharp lobes met in practice
 //! (fitted scattering amplitudes reach `kappa ~ 3.4e3`, apertures times `i k` distances reach
 //! `|mu| ~ 1e5`).
 

@@ -1,7 +1,7 @@
 //! Complex von Mises-Fisher (vMF) functions and vMF-mixture fits of scattering amplitudes, the
 //! closed-form machinery of near-field speckle rendering (Bar, Gkioulekas and Levin, *Rendering
 //! near-field speckle statistics in scattering media*, ACM TOG 39(6), 2020, Sec. 5 and 5.1,
-//! Eqs. 19-21, 28-29; `notes/nearfield-2020.md` Secs. 4.3-4.4 and 5).
+//! Eqs. 19-21, 28-29).
 //!
 //! - [`ComplexVmf`]: `h(w) = exp(log_scale + mu . w)` with complex `mu`; products, conjugates
 //!   rotations, the sphere integral (Eq. 29) and the convolution with a lobe (exact at one
@@ -146,3 +146,12 @@ pub mod testing {
         ]
     }
 }
+
+// Re-exported so that an embedder uses the versions this crate was built with.
+pub use glam;
+pub use num_complex;
+
+/// The examples of the crate's README.md, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

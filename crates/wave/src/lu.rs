@@ -3,9 +3,9 @@
 //!
 //! faer's LU is one call: at `N = 19 000` it runs for minutes and cannot be interrupted. This is
 //! the right-looking blocked algorithm (LAPACK's `getrf`) built from faer's kernels: for each
-//! panel of [`PANEL`] columns, faer's recursive LU of the tall panel, its row interchanges
+//! panel of `PANEL` (128) columns, faer's recursive LU of the tall panel, its row interchanges
 //! applied to the other columns, the triangular solve for the panel's block row of `U`, and the
-//! update of the trailing matrix by GEMM in chunks of [`CHUNK`] columns. The cancellation test
+//! update of the trailing matrix by GEMM in chunks of `CHUNK` (512) columns. The cancellation test
 //! runs before every panel and every chunk, a few hundred milliseconds of work apart at the
 //! largest sizes. The flops are those of any LU, `(8/3) N^3` real, almost all in the GEMMs.
 

@@ -76,7 +76,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 /// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
 pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
-    let scene = p.box_scene().map_err(in_scene(&p))?;
+    let scene = p.box_scene().map_err(in_scene(p))?;
     let (j, rr) = (p.pairs(), p.render.configurations);
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
     let density = number_density(&scene).map_err(wave_error)?;
