@@ -117,6 +117,11 @@ def parse_args():
                    help="virtual environment for pmcxcl and the OpenCL runtime")
     p.add_argument("--speckle", type=Path, default=None,
                    help="the speckle binary (default: build <target>/ci/speckle with cargo)")
+    p.add_argument("--mus", type=float, default=MUS_PER_CM,
+                   help="scattering coefficient, 1/cm (the example's 100; 10 with --g 0 is the "
+                        "isotropic cube of the same reduced scattering)")
+    p.add_argument("--g", type=float, default=G_HG, help="Henyey-Greenstein g (0: isotropic)")
+    p.add_argument("--mua", type=float, default=MUA_PER_CM, help="absorption coefficient, 1/cm")
     p.add_argument("--n", type=float, default=1.0,
                    help="refractive index of the medium, air (1) outside: 1 (default) is "
                         "index-matched (MCX-CL isreflect = 0); another makes the faces reflect "
@@ -361,9 +366,11 @@ def scene_text(exe, na: float, ts, n: float = 1.0) -> str:
             raise SystemExit(f"the example {EXAMPLE} has no line `{line}`: the scene changed")
     text, n_na = re.subn(r"^numerical_aperture = .*$", f"numerical_aperture = {na!r}", text,
                          flags=re.M)
-    if n != 1.0:
-        text = re.sub(r"^sigma_a = 0.1$", f"sigma_a = 0.1\nhost_index = {n!r}\noutside_index = 1.0",
-                      text, count=1, flags=re.M)
+    text = re.sub(r"^sigma_s = 100.0$", f"sigma_s = {MUS_PER_CM!r}", text, count=1, flags=re.M)
+    text = re.sub(r"^g = 0.9$", f"g = {G_HG!r}", text, count=1, flags=re.M)
+    medium = f"\nhost_index = {n!r}\noutside_index = 1.0" if n != 1.0 else ""
+    text = re.sub(r"^sigma_a = 0.1$", f"sigma_a = {MUA_PER_CM!r}{medium}", text, count=1,
+                  flags=re.M)
     lag_list = ", ".join(f"{t:.6e}" for t in ts)
     text, n_lags = re.subn(r"^lags = \[.*\]$", f"lags = [{lag_list}]", text, flags=re.M)
     if n_na != 1 or n_lags != 1:
@@ -481,7 +488,11 @@ def ratio_jackknife(num, den):
 
 
 def main():
+    global MUS_PER_CM, MUA_PER_CM, G_HG
     a = parse_args()
+    # Every part of the script reads the optics from these (the speckle scene's lines are
+    # replaced by `scene_text`).
+    MUS_PER_CM, MUA_PER_CM, G_HG = a.mus, a.mua, a.g
     if not a.in_venv and not a.skip_mcx:
         reexec_in_venv(__file__, a.venv, sys.argv[1:])
     import numpy as np
