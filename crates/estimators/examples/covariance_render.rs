@@ -1,7 +1,8 @@
 //! One covariance render of the benchmark slab (`benches/render.rs`), for profiles and
 //! peak-memory measurements:
 //!
-//! `cargo run --release -p speckle-estimators --example covariance_render -- SOURCES SENSORS PATHS [THREADS [REPEAT]]`
+//! `cargo run --release -p speckle-estimators --example covariance_render -- [SOURCES SENSORS PATHS [THREADS [REPEAT]]]`
+//! (default `1 64 100000`)
 //!
 //! renders `J = SOURCES x SENSORS` pairs (plane waves and far-field sensors around the forward
 //! direction of a 40 x 40 x 10 slab, mean free path 5, HG g = 0.5) from `PATHS` paths, seed 1, on
@@ -15,14 +16,24 @@ use speckle_estimators::{
 use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 use speckle_phase::Phase;
 
+const USAGE: &str = "usage: covariance_render [SOURCES SENSORS PATHS [THREADS [REPEAT]]] \
+                     (positive integers; default 1 64 100000)";
+
 fn main() {
-    let args: Vec<usize> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse().expect("arguments are integers"))
-        .collect();
+    let args: Vec<usize> = match std::env::args().skip(1).map(|a| a.parse()).collect() {
+        Ok(a) => a,
+        Err(_) => {
+            eprintln!("{USAGE}");
+            std::process::exit(2);
+        }
+    };
     let (n_src, n_sens, paths) = match args[..] {
-        [s, v, p, ..] => (s, v, p as u64),
-        _ => panic!("usage: covariance_render SOURCES SENSORS PATHS [THREADS]"),
+        [] => (1, 64, 100_000),
+        [s, v, p, ..] if s > 0 && v > 0 && p > 1 => (s, v, p as u64),
+        _ => {
+            eprintln!("{USAGE}");
+            std::process::exit(2);
+        }
     };
     let threads = args.get(3).copied().unwrap_or(0);
     let repeat = args.get(4).copied().unwrap_or(1).max(1);

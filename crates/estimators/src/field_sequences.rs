@@ -366,10 +366,9 @@ pub fn render_field_sequence<M: Medium, P: PhaseFunction>(
             ),
         ));
     }
-    let model = scene.motion_fits(model).map_err(|e| match e {
-        speckle_motion::MotionError::InvalidInput { field, reason } => {
-            invalid(format!("motion.{field}"), reason)
-        }
+    let model = scene.motion_fits(model).map_err(|e| {
+        let (field, reason) = e.into_parts();
+        invalid(format!("motion.{field}"), reason)
     })?;
     let mut distinct = times.to_vec();
     distinct.sort_by(f64::total_cmp);

@@ -54,6 +54,7 @@ pub use speckle_phase::Dimension;
 
 /// Errors raised when a medium is built from invalid parameters.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MediumError {
     /// A coefficient is NaN, infinite or negative.
     #[error("{field} must be finite and >= 0 (got {value})")]

@@ -65,6 +65,7 @@ use glam::DVec3;
 
 /// Errors of motion models and correlation helpers; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MotionError {
     /// An input is invalid; `field` names it.
     #[error("{field}: {reason}")]
@@ -74,6 +75,16 @@ pub enum MotionError {
         /// What is wrong with it.
         reason: String,
     },
+}
+
+impl MotionError {
+    /// The offending field and what is wrong with it (for callers that name fields their own
+    /// way; the enum is `#[non_exhaustive]`).
+    pub fn into_parts(self) -> (String, String) {
+        match self {
+            MotionError::InvalidInput { field, reason } => (field, reason),
+        }
+    }
 }
 
 pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> MotionError {

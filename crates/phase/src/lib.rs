@@ -53,6 +53,7 @@ use std::sync::Arc;
 
 /// Errors raised when a phase function is built from invalid parameters.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum PhaseError {
     /// The anisotropy parameter is NaN or has `|g| >= 1`.
     #[error("g must be finite with |g| < 1 (got {0})")]
@@ -153,8 +154,10 @@ impl PhaseFunction for Isotropic {
     }
 }
 
-/// The closed set of phase functions, for static dispatch and configuration.
+/// The phase functions of this crate, for static dispatch and configuration (`#[non_exhaustive]`:
+/// a new model is a new variant, not a breaking change).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum Phase {
     /// Isotropic scattering.
     Isotropic,

@@ -66,6 +66,7 @@ pub use mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfLobe, VmfMixture};
 
 /// Errors of mixture construction and fitting; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum VmfError {
     /// A mixture needs at least one lobe.
     #[error("components: a mixture needs at least one lobe")]

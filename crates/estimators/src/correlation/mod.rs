@@ -429,6 +429,6 @@ fn drift_midpoints<M: Medium, P: PhaseFunction>(
 }
 
 fn motion_error(e: speckle_motion::MotionError) -> EstimatorError {
-    let speckle_motion::MotionError::InvalidInput { field, reason } = e;
+    let (field, reason) = e.into_parts();
     EstimatorError::InvalidInput { field, reason }
 }
