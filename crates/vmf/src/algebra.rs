@@ -51,7 +51,7 @@ pub fn ln_sinhc(x: f64) -> f64 {
 
 /// `ln C_3(kappa)`, the log of the normaliser of a real vMF density on the unit sphere:
 /// `C_3(kappa) = kappa / (4 pi sinh kappa)`, so that `int C_3(kappa) e^(kappa mu.w) dw = 1`
-/// (notes Sec. 4.4c). Even in `kappa`; `ln C_3(0) = -ln(4 pi)`.
+/// (the normaliser of a unit vMF). Even in `kappa`; `ln C_3(0) = -ln(4 pi)`.
 ///
 /// ```
 /// use speckle_vmf::ln_vmf_normaliser;
@@ -117,7 +117,7 @@ pub(crate) fn mean_resultant_length_derivative(kappa: f64) -> f64 {
 /// `d <= 0` gives `cap`.
 ///
 /// Banerjee et al. (2005), Eq. 4.4 for `p = 3`, `kappa ~ (3 rbar - rbar^3) / (1 - rbar^2)`, then
-/// Newton steps on `A_3(kappa) = rbar` (notes Sec. 5, M-step), clamped to `[0, cap]`.
+/// Newton steps on `A_3(kappa) = rbar` (the M-step of the fit), clamped to `[0, cap]`.
 pub(crate) fn inverse_mean_resultant_length(d: f64, cap: f64) -> f64 {
     if d.is_nan() || d >= 1.0 {
         return 0.0;
@@ -186,7 +186,7 @@ pub fn ln_sinhc_complex(b: Complex64) -> Complex64 {
 ///
 /// Products of vMFs are vMFs (add the log scales and the `mu`), conjugates are vMFs, and the
 /// integral over the sphere has the closed form of Eq. 29, so every operation the near-field
-/// renderer needs stays in closed form (notes Sec. 4.4).
+/// renderer needs stays in closed form.
 ///
 /// ```
 /// use glam::DVec3;
@@ -248,7 +248,7 @@ impl ComplexVmf {
         self.ln_eval(w).exp()
     }
 
-    /// The product `h1 h2`: log scales add and parameters add (notes Sec. 4.4a).
+    /// The product `h1 h2`: log scales add and parameters add.
     pub fn mul(&self, other: &Self) -> Self {
         Self {
             log_scale: self.log_scale + other.log_scale,
@@ -264,7 +264,7 @@ impl ComplexVmf {
         }
     }
 
-    /// `h1 h2^*`, the product that appears in every covariance term (notes Sec. 4.4a).
+    /// `h1 h2^*`, the product that appears in every covariance term.
     pub fn mul_conj(&self, other: &Self) -> Self {
         self.mul(&other.conj())
     }
@@ -290,7 +290,7 @@ impl ComplexVmf {
     }
 
     /// `mu . mu = mu_x^2 + mu_y^2 + mu_z^2`, the bilinear (non-Hermitian) square (Eq. 20; the paper
-    /// prints it without squares, see notes Sec. 4.1).
+    /// prints it without squares).
     pub fn mu_squared(&self) -> Complex64 {
         self.mu[0] * self.mu[0] + self.mu[1] * self.mu[1] + self.mu[2] * self.mu[2]
     }
@@ -305,21 +305,21 @@ impl ComplexVmf {
     ///
     /// Full sinh form `2 pi e^beta (1 - e^(-2 beta)) / beta` (with a complex `exp_m1`) away from
     /// `beta = 0` and the Taylor series `1 + beta^2/6 + beta^4/120 + ...` near it, so there is no
-    /// pole where the truncated form `2 pi e^beta / beta` of the reference code has one (notes
-    /// Sec. 4.7). The imaginary part is a phase (modulo `2 pi`); the real part is `-inf` exactly
+    /// pole where the truncated form `2 pi e^beta / beta` of the reference code has one.
+    /// The imaginary part is a phase (modulo `2 pi`); the real part is `-inf` exactly
     /// at the zeros `beta = i pi n` of `sinh`.
     pub fn ln_sphere_integral(&self) -> Complex64 {
         self.log_scale + LN_4PI + ln_sinhc_complex(self.beta())
     }
 
     /// The exact convolution with the real lobe `e^(gamma w . psi)` evaluated at one direction
-    /// `w`, in log form: `ln int h(psi) e^(gamma w . psi) dpsi` (notes Sec. 4.4e; exact whenever
+    /// `w`, in log form: `ln int h(psi) e^(gamma w . psi) dpsi` (exact whenever
     /// the outgoing direction is known, `B >= 2`).
     pub fn ln_convolve_at(&self, gamma: f64, w: DVec3) -> Complex64 {
         self.mul(&Self::real(0.0, gamma, w)).ln_sphere_integral()
     }
 
-    /// The convolution approximation of Eqs. 31-32 (notes Sec. 4.4f): the function
+    /// The convolution approximation of Eqs. 31-32: the function
     /// `w -> int h(psi) e^(gamma w . psi) dpsi` approximated by the complex vMF
     /// `exp(c + (gamma / beta_o) mu . w)`, linearising `beta(w) = sqrt((mu + gamma w)^2)` about
     /// `w_o` (`beta_o = beta(w_o)`, principal root). The scale is matched at `w_o` with the full
@@ -329,7 +329,7 @@ impl ComplexVmf {
     ///
     /// Its error grows with the distance from `w_o`: the first neglected term of `beta(w)` is
     /// `-(gamma mu . (w - w_o))^2 / (2 beta_o^3)`, so it is accurate near `w_o` and degrades in
-    /// the back directions of reflection (notes Sec. 4.7). `None` where `|beta_o|` is below
+    /// the back directions of reflection. `None` where `|beta_o|` is below
     /// `1e-8 (|mu| + |gamma|)`, where the linearisation breaks down (a branch point).
     pub fn convolve_approx(&self, gamma: f64, w_o: DVec3) -> Option<Self> {
         let shifted = self.mul(&Self::real(0.0, gamma, w_o));

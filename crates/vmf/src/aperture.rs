@@ -1,7 +1,7 @@
 //! Gaussian-apodized lens apertures as complex vMFs: the weighted aperture functions of Bar et
-//! al. 2020, Eqs. 23-27 (notes Secs. 3.4, 4.2), and the exact scattering connection `Upsilon`
+//! al. 2020, Eqs. 23-27, and the exact scattering connection `Upsilon`
 //! of Eqs. 15-16 for a vMF-mixture amplitude (Eq. 28) when the path direction is known
-//! (`B >= 2`; notes Secs. 4.4e, 4.5).
+//! (`B >= 2`).
 //!
 //! An aperture focused at `f` with optical axis `a` (the direction light propagates through the
 //! focus) and concentration `gamma` weighs the plane wave of direction `w` by the mask
@@ -16,9 +16,9 @@
 //! `speckle-endpoints`: a sensor focused at `v` and looking along `a_v` (light travelling along
 //! `a_v` into it) reads, by reciprocity, the field of the source focused at `v` with axis `-a_v`;
 //! its weighted aperture over the viewing direction `v^ = -w` is the paper's
-//! `m(v^) e^(i k v^ . (v - o))` exactly (notes Sec. 4.2, "Viewing aperture").
+//! `m(v^) e^(i k v^ . (v - o))` exactly.
 //!
-//! **Normalisation** (notes Sec. 4.2 and erratum 12): the mask has unit integral,
+//! **Normalisation** (the paper's own normalisation differs): the mask has unit integral,
 //! `c = C_3(gamma) = gamma / (4 pi sinh gamma)` (`C_2(gamma) = 1 / (2 pi I_0(gamma))` in
 //! flatland), like the reference code's default and unlike the paper's peak-1 `e^(-gamma)`. In
 //! absolute units (`docs/conventions.md`) this makes the vacuum field of the beam,
@@ -41,7 +41,7 @@ pub const MAX_APERTURE_GAMMA: f64 = 1e7;
 /// The aperture concentration of a numerical aperture `na` in `(0, 1]`:
 /// `gamma = 4 / na^2`, so that the mask's per-axis variance of the direction cosines,
 /// `1 / gamma`, matches that of a uniform disk of radius `na` in direction-cosine space,
-/// `na^2 / 4` (second-moment matching; the paper gives no rule, notes Sec. 4.2 and erratum 7).
+/// `na^2 / 4` (second-moment matching; the paper gives no rule).
 /// `na = 0.5` gives `gamma = 16` (the paper's `sigma_a = 0.25`).
 ///
 /// ```
@@ -150,7 +150,7 @@ impl Aperture {
         )
     }
 
-    /// `ln Upsilon(w_out; o)`: the exact scattering connection of Eqs. 15-16 (notes Sec. 4.5),
+    /// `ln Upsilon(w_out; o)`: the exact scattering connection of Eqs. 15-16,
     /// `int a~(w; o) s(w . w_out) dw = sum_m pi_m int a~(w; o) e^(gamma_m w_out . w) dw`, for
     /// the weighted aperture `weighted` and the normalised amplitude of `mixture` (Eq. 28,
     /// `int |s|^2 = 1`), summed in log form (a complex log-sum-exp). In source form `w_out` is

@@ -1,6 +1,6 @@
 //! Modified Bessel functions `I_0` and `I_1` of complex argument in log form: the circle
 //! integral of a complex vMF, `int_{S^1} e^(mu . w) dw = 2 pi I_0(sqrt(mu . mu))`, is the
-//! flatland analogue of Eq. 29 (notes Sec. 4.4b, "2D analogue").
+//! flatland analogue of Eq. 29.
 //!
 //! `I_0` is even and `I_1(z) / z` is even, so nothing here depends on the branch of
 //! `sqrt(mu . mu)`; every function works on the root with `Re z >= 0`. Three regimes, each

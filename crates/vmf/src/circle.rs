@@ -1,6 +1,5 @@
 //! Complex von Mises functions on the unit circle, the flatland analogue of [`ComplexVmf`]
-//! (Bar et al. 2020, Sec. 8 and the wave-solver comparison of Fig. 11 run in 2D; notes Sec. 4.4b,
-//! "2D analogue", and Sec. 7.5).
+//! (Bar et al. 2020, Sec. 8 and the wave-solver comparison of Fig. 11 run in 2D).
 //!
 //! `h(w) = exp(log_scale + mu . w)` for unit `w = (cos phi, sin phi)` and complex `mu in C^2`.
 //! Products, conjugates and rotations are closed as in 3D; the circle integral is

@@ -1,5 +1,5 @@
 //! Fixed-axis weighted EM fit of a vMF mixture to a scattering amplitude (Bar et al. 2020,
-//! Sec. 5.1, after Banerjee et al. 2005; notes Sec. 5).
+//! Sec. 5.1, after Banerjee et al. 2005).
 
 use crate::VmfError;
 use crate::algebra::{inverse_mean_resultant_length, ln_vmf_normaliser};
@@ -169,7 +169,7 @@ pub fn fit_amplitude(
 /// `mean_cosine` (as for [`fit_amplitude`]) with (at most) `k` vMF lobes on the axis `+-i`, `k`
 /// in `1..=64`.
 ///
-/// Method (notes Sec. 5, the reference `wmovmf.m`), with the differences stated:
+/// Method (as the authors' reference code), with the differences stated:
 ///
 /// 1. **Target.** The modulus `|s(mu)|` (for a phase function, `sqrt(rho(mu))`): any complex
 ///    phase of the amplitude (e.g. of Mie data) is discarded, as in the reference, and the fitted

@@ -26,7 +26,7 @@ pub struct VmfLobe {
 }
 
 /// A real scattering amplitude `s(mu) = sum_m pi_m e^(gamma_m mu)` with signed `gamma_m` and
-/// `pi_m = alpha_m C_3(|gamma_m|) > 0` (Bar et al. 2020, Eq. 28; notes Sec. 4.3), where
+/// `pi_m = alpha_m C_3(|gamma_m|) > 0` (Bar et al. 2020, Eq. 28), where
 /// `mu = cos theta` is the cosine between the incoming and outgoing directions and
 /// `C_3(k) = k / (4 pi sinh k)`, so that lobe `m` integrates to `alpha_m` over the sphere.
 ///
@@ -114,7 +114,7 @@ impl VmfMixture {
             lobes.push(VmfLobe {
                 gamma,
                 alpha,
-                // ln pi_m = ln alpha_m + ln C_3(|gamma_m|)  (notes Sec. 4.3)
+                // ln pi_m = ln alpha_m + ln C_3(|gamma_m|)
                 ln_weight: alpha.ln() + ln_vmf_normaliser(gamma),
             });
         }
@@ -221,7 +221,7 @@ impl VmfMixture {
 
     /// The normalised amplitude as complex vMFs of the outgoing direction `w` for the unit
     /// incoming direction `axis`: `sum_m lobes[m].eval(w) = amplitude(axis . w)`, each lobe
-    /// `exp(ln pi_m - ln(Z)/2 + gamma_m axis . w)` (notes Sec. 4.3, `movmfRotate`). By symmetry the
+    /// `exp(ln pi_m - ln(Z)/2 + gamma_m axis . w)` (the reference code's `movmfRotate`). By symmetry the
     /// same lobes give the amplitude as a function of the incoming direction for a fixed outgoing
     /// `axis`.
     pub fn lobes_about(&self, axis: DVec3) -> Vec<ComplexVmf> {
