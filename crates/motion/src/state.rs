@@ -21,6 +21,25 @@
 //! the state (the first direction, the motion at `x_1` and at `x_b`), evaluating every lag from
 //! the same state, as the spatio-temporal estimator (`speckle_estimators::render_correlation`,
 //! whose path factor `speckle_estimators::MotionFactor` keeps this state along its paths) does.
+//!
+//! # A path's factor at lag `t`, in your own tracer
+//!
+//! For a contribution ending at `x_b` (`b >= 2`) of a pair whose copies have leg gradients
+//! `g_s1, g_s2` at `x_1` and `g_v1, g_v2` at `x_b` ([`crate::source_gradient`],
+//! [`crate::sensor_gradient`]: for point and far-field endpoints the leg direction; equal for a
+//! diagonal entry):
+//!
+//! - without drift: `gamma(k, m_1, first_transfer(w1, g_s1, g_s2), t) * interior(k, t) *
+//!   gamma(k, m_b, last_transfer(w_in, g_v1, g_v2), t)` (`m_1`, `m_b`: [`MotionState::first`]
+//!   and [`MotionState::here`]; `crates/motion/examples/own_tracer.rs` does this and is checked
+//!   against `render_correlation`);
+//! - with drift: connect copy 1 (read at `-t/2`) from `x - t U(x) / 2` and copy 2 from
+//!   `x + t U(x) / 2` at both end vertices with your own exact legs (lengths, attenuations,
+//!   amplitudes), multiply `A_1 conj(A_2)` by `interior(k, t)` (whose drift sum telescopes the
+//!   interior) and by the end gammas of the Brownian parts alone (`Motion::brownian(D)`); a path
+//!   whose vertex lies outside the medium at either time contributes nothing at that lag. This is
+//!   what `render_correlation` does; it is documented here, not demonstrated by a test of this
+//!   crate.
 
 use crate::Motion;
 use glam::DVec3;
