@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mcxenv import C_MM_PER_S, DEFAULT_VENV, IN_VENV, reexec_in_venv, speckle_binary
+from mcxenv import C_MM_PER_S, add_run_arguments, reexec_in_venv, speckle_binary
 
 
 def parse_args():
@@ -30,16 +30,8 @@ def parse_args():
     p.add_argument("--g", type=float, default=0.5, help="Henyey-Greenstein mean cosine")
     p.add_argument("--photons", type=float, default=1e6, help="MCX-CL photons")
     p.add_argument("--paths", type=float, default=2e6, help="speckle sub-paths")
-    p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
     p.add_argument("--voxel", type=float, default=1.0, help="MCX voxel edge (length units)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
-                   help="virtual environment for pmcxcl and the OpenCL runtime")
-    p.add_argument("--speckle", type=Path, default=None,
-                   help="the speckle binary (default: build target/release/speckle with cargo)")
-    p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
-    p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
-    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
+    add_run_arguments(p, json=False)
     return p.parse_args()
 
 

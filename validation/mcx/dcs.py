@@ -33,7 +33,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mcxenv import DEFAULT_VENV, IN_VENV, REPO, reexec_in_venv, speckle_binary
+from mcxenv import REPO, add_run_arguments, reexec_in_venv, speckle_binary
 
 # The scene (cm, s).
 N_VOX = 100  # voxels per edge: 0.1 mm
@@ -61,18 +61,9 @@ def parse_args():
                         "along +z, an isotropic point (the half launched outward leaves at once)")
     p.add_argument("--paths", type=int, default=60000, help="speckle paths per render")
     p.add_argument("--renders", type=int, default=16, help="independent speckle renders (seeds)")
-    p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
-    p.add_argument("--seed", type=int, default=1, help="first seed of either program")
     p.add_argument("--target-se", type=float, default=0.005,
                    help="standard error of g1(50 us) for which the times are scaled")
-    p.add_argument("--json", type=Path, default=None, help="write the results here")
-    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
-                   help="virtual environment for pmcxcl and the OpenCL runtime")
-    p.add_argument("--speckle", type=Path, default=None,
-                   help="the speckle binary (default: build <target>/ci/speckle with cargo)")
-    p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
-    p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
-    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
+    add_run_arguments(p)
     return p.parse_args()
 
 

@@ -47,7 +47,7 @@ import time
 from pathlib import Path
 
 from dcs import jackknife, quiet_stdout
-from mcxenv import DEFAULT_VENV, IN_VENV, reexec_in_venv, speckle_binary
+from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary
 
 EXAMPLE = "head"
 # Lines of `speckle example head` the MCX-CL model copies (checked in the example's text).
@@ -73,18 +73,9 @@ def parse_args():
     p.add_argument("--runs", type=int, default=8, help="independent MCX-CL runs (seeds)")
     p.add_argument("--paths", type=int, default=25000, help="speckle paths per render")
     p.add_argument("--renders", type=int, default=8, help="independent speckle renders (seeds)")
-    p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
-    p.add_argument("--seed", type=int, default=1, help="first seed of either program")
     p.add_argument("--target-se", type=float, default=0.005,
                    help="standard error of g1 for which the times are scaled")
-    p.add_argument("--json", type=Path, default=None, help="write the results here")
-    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
-                   help="virtual environment for pmcxcl and the OpenCL runtime")
-    p.add_argument("--speckle", type=Path, default=None,
-                   help="the speckle binary (default: build <target>/ci/speckle with cargo)")
-    p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
-    p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
-    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
+    add_run_arguments(p)
     return p.parse_args()
 
 

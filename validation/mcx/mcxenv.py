@@ -22,6 +22,25 @@ C_MM_PER_S = 299_792_458_000.0
 IN_VENV = "--in-venv"
 
 
+def add_run_arguments(p, json: bool = True):
+    """The options every comparison script shares: speckle's threads, the first seed, the JSON
+    results (`json`), the environment and the binary, either program alone, and the flag of the
+    re-run inside the environment."""
+    import argparse
+
+    p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
+    p.add_argument("--seed", type=int, default=1, help="first seed of either program")
+    if json:
+        p.add_argument("--json", type=Path, default=None, help="write the results here")
+    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
+                   help="virtual environment for pmcxcl and the OpenCL runtime")
+    p.add_argument("--speckle", type=Path, default=None,
+                   help="the speckle binary (default: build <target>/ci/speckle with cargo)")
+    p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
+    p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
+    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
+
+
 def venv_python(venv: Path) -> Path:
     return venv / "bin" / "python"
 

@@ -74,7 +74,7 @@ import time
 from pathlib import Path
 
 from dcs import jackknife, quiet_stdout
-from mcxenv import DEFAULT_VENV, IN_VENV, reexec_in_venv, speckle_binary
+from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary
 
 # The scene (cm, s), as `speckle example tissue_fibre`; the script checks the example's text.
 EDGE_CM = 1.0
@@ -107,16 +107,9 @@ def parse_args():
     p.add_argument("--paths", type=int, default=500000, help="speckle paths per render")
     p.add_argument("--renders", type=int, default=16,
                    help="independent speckle renders (seeds) per NA")
-    p.add_argument("--threads", type=int, default=0, help="speckle worker threads (0: all cores)")
-    p.add_argument("--seed", type=int, default=1, help="first seed of either program")
     p.add_argument("--target-se", type=float, default=0.005,
                    help="standard error of g1 at the lag nearest its 1/e point for which the "
                         "times are scaled")
-    p.add_argument("--json", type=Path, default=None, help="write the results here")
-    p.add_argument("--venv", type=Path, default=DEFAULT_VENV,
-                   help="virtual environment for pmcxcl and the OpenCL runtime")
-    p.add_argument("--speckle", type=Path, default=None,
-                   help="the speckle binary (default: build <target>/ci/speckle with cargo)")
     p.add_argument("--mus", type=float, default=MUS_PER_CM,
                    help="scattering coefficient, 1/cm (the example's 100; 10 with --g 0 is the "
                         "isotropic cube of the same reduced scattering)")
@@ -135,9 +128,7 @@ def parse_args():
                    help="speckle paths per render of the profile scene")
     p.add_argument("--profile-renders", type=int, default=4,
                    help="independent speckle renders (seeds) of the profile scene")
-    p.add_argument("--skip-mcx", action="store_true", help="only run speckle")
-    p.add_argument("--skip-speckle", action="store_true", help="only run MCX-CL")
-    p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
+    add_run_arguments(p)
     return p.parse_args()
 
 

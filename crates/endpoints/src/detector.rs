@@ -159,14 +159,7 @@ impl Detector {
         let axis = match axis {
             None => normal,
             Some(d) => {
-                let n = d.length();
-                if !(d.is_finite() && n > 0.0) {
-                    return Err(check::invalid(
-                        format!("{field}.axis"),
-                        format!("must be a finite non-zero vector (got {d})"),
-                    ));
-                }
-                let d = d / n;
+                let d = unit_axis(field, d)?;
                 if d.dot(normal) <= 0.0 {
                     return Err(check::invalid(
                         format!("{field}.axis"),
@@ -221,14 +214,7 @@ impl Detector {
             Weighting::Flux,
         )?;
         if let Some(a) = axis {
-            let n = a.length();
-            if !(a.is_finite() && n > 0.0) {
-                return Err(check::invalid(
-                    format!("{field}.axis"),
-                    format!("must be a finite non-zero vector (got {a})"),
-                ));
-            }
-            let a = a / n;
+            let a = unit_axis(field, a)?;
             let sin_max = numerical_aperture / outside_index;
             if -a.dot(d.normal) < sin_max {
                 return Err(check::invalid(
@@ -357,6 +343,18 @@ impl Detector {
             Weighting::Fluence => 1.0 / (self.area() * cos_n),
         }
     }
+}
+
+/// The unit vector along `d`, or an error naming `field.axis` when `d` is not finite or zero.
+fn unit_axis(field: &str, d: DVec3) -> Result<DVec3, EndpointError> {
+    let n = d.length();
+    if !(d.is_finite() && n > 0.0) {
+        return Err(check::invalid(
+            format!("{field}.axis"),
+            format!("must be a finite non-zero vector (got {d})"),
+        ));
+    }
+    Ok(d / n)
 }
 
 #[cfg(test)]

@@ -31,15 +31,15 @@
 //!
 //! - without drift: `gamma(k, m_1, first_transfer(w1, g_s1, g_s2), t) * interior(k, t) *
 //!   gamma(k, m_b, last_transfer(w_in, g_v1, g_v2), t)` (`m_1`, `m_b`: [`MotionState::first`]
-//!   and [`MotionState::here`]; `crates/motion/examples/own_tracer.rs` does this and is checked
-//!   against `render_correlation`);
+//!   and [`MotionState::here`]);
 //! - with drift: connect copy 1 (read at `-t/2`) from `x - t U(x) / 2` and copy 2 from
 //!   `x + t U(x) / 2` at both end vertices with your own exact legs (lengths, attenuations,
 //!   amplitudes), multiply `A_1 conj(A_2)` by `interior(k, t)` (whose drift sum telescopes the
 //!   interior) and by the end gammas of the Brownian parts alone (`Motion::brownian(D)`); a path
 //!   whose vertex lies outside the medium at either time contributes nothing at that lag. This is
-//!   what `render_correlation` does; it is documented here, not demonstrated by a test of this
-//!   crate.
+//!   what `render_correlation` does; `crates/motion/examples/own_tracer.rs` does it for a plane
+//!   wave and a far-field sensor, checked against `render_correlation` (real and imaginary
+//!   parts of `g1`) by the workspace's `tests/embed_g1.rs`.
 
 use crate::Motion;
 use glam::DVec3;

@@ -7,6 +7,7 @@ use speckle_vmf::glam::DVec3;
 use speckle_vmf::num_complex::Complex64;
 use speckle_vmf::{ComplexVmf, FitOptions, fit_amplitude};
 
+#[allow(dead_code)] // tools/outside includes this file as a module
 fn main() {
     let g: f64 = 0.9;
     let rho = |mu: f64| {
@@ -26,7 +27,15 @@ fn main() {
             Complex64::new(0.0, 3.0),
         ],
     );
-    let (nt, np) = (400, 800);
+    let q = sphere_quadrature(&h, 400, 800);
+    println!(
+        "sphere integral: closed form {:.6}, quadrature {q:.6}",
+        h.sphere_integral()
+    );
+}
+
+/// `int_{S^2} h dw` by the midpoint rule on `nt` cosines and `np` azimuths.
+pub fn sphere_quadrature(h: &ComplexVmf, nt: usize, np: usize) -> Complex64 {
     let mut q = Complex64::ZERO;
     for i in 0..nt {
         let mu = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
@@ -36,9 +45,5 @@ fn main() {
             q += h.eval(DVec3::new(s * phi.cos(), s * phi.sin(), mu));
         }
     }
-    q *= 4.0 * std::f64::consts::PI / (nt * np) as f64;
-    println!(
-        "sphere integral: closed form {:.6}, quadrature {q:.6}",
-        h.sphere_integral()
-    );
+    q * (4.0 * std::f64::consts::PI / (nt * np) as f64)
 }

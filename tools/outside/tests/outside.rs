@@ -4,8 +4,9 @@
 //!   sampled-direction density equals the closed form (to the quadrature's 1e-6);
 //! - `speckle-vmf`: the closed-form sphere integral of a complex vMF (Eq. 29) equals quadrature
 //!   (to 1e-5 relative);
-//! - `speckle-motion`: `g1` of the paths of the tracer in `crates/motion/examples/own_tracer.rs`
-//!   (its own random numbers and geometry; 200 000 paths, seed 2) against the workspace's
+//! - `speckle-motion`: the complex `g1` of drifting Brownian scatterers from the paths of the
+//!   tracer in `crates/motion/examples/own_tracer.rs` (its own random numbers and geometry;
+//!   200 000 paths, seed 2) against the workspace's
 //!   estimator on the same scene, `render_correlation` over 16 renders of 40 000 paths
 //!   (`tests/embed_g1.rs` prints and checks these values live), within 4.5 combined standard
 //!   errors at every lag.
@@ -13,6 +14,9 @@
 #[allow(dead_code)]
 #[path = "../../../crates/motion/examples/own_tracer.rs"]
 mod own_tracer;
+#[allow(dead_code)]
+#[path = "../../../crates/vmf/examples/fit.rs"]
+mod vmf_example;
 
 use speckle_phase::glam::DVec3;
 use speckle_phase::{Phase, PhaseFunction};
@@ -45,29 +49,20 @@ fn complex_vmf_integral_by_quadrature() {
             Complex64::new(0.7, 1.0),
         ],
     );
-    let (nt, np) = (600, 1200);
-    let mut q = Complex64::ZERO;
-    for i in 0..nt {
-        let mu = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
-        let s = (1.0 - mu * mu).sqrt();
-        for j in 0..np {
-            let phi = std::f64::consts::TAU * (j as f64 + 0.5) / np as f64;
-            q += h.eval(DVec3::new(s * phi.cos(), s * phi.sin(), mu));
-        }
-    }
-    q *= 4.0 * std::f64::consts::PI / (nt * np) as f64;
+    let q = vmf_example::sphere_quadrature(&h, 600, 1200);
     let c = h.sphere_integral();
     assert!((q - c).norm() < 1e-5 * c.norm(), "{q} against {c}");
 }
 
-/// `render_correlation`'s `|g1|` and jackknife standard error on `Setup::example()` at
-/// `own_tracer::LAGS` (16 renders of 40 000 forward paths, seeds 1-16; `tests/embed_g1.rs`).
-const WORKSPACE_G1: [(f64, f64); 5] = [
-    (1.0, 0.0),
-    (0.8900, 0.0002),
-    (0.8042, 0.0003),
-    (0.6798, 0.0004),
-    (0.5343, 0.0005),
+/// `render_correlation`'s complex `g1` and the jackknife standard errors of its parts on
+/// `Setup::example()` at `own_tracer::LAGS` (16 renders of 40 000 forward paths, seeds 1-16;
+/// `tests/embed_g1.rs`): `((re, im), (se_re, se_im))`.
+const WORKSPACE_G1: [((f64, f64), (f64, f64)); 5] = [
+    ((1.0, 0.0), (0.0, 0.0)),
+    ((0.887149, 0.028607), (0.000188, 0.000006)),
+    ((0.798198, 0.051531), (0.000303, 0.000020)),
+    ((0.667038, 0.086487), (0.000372, 0.000048)),
+    ((0.505785, 0.133401), (0.000412, 0.000109)),
 ];
 
 #[test]
@@ -75,11 +70,12 @@ fn g1_of_own_paths_matches_the_workspace_estimator() {
     let s = own_tracer::Setup::example();
     let (g, se) = own_tracer::g1(&s, &own_tracer::LAGS, 200_000, 2);
     for l in 1..g.len() {
-        let (r, r_se) = WORKSPACE_G1[l];
-        let z = (g[l] - r) / se[l].hypot(r_se);
+        let ((re, im), (se_re, se_im)) = WORKSPACE_G1[l];
+        let z_re = (g[l].re - re) / se[l].re.hypot(se_re);
+        let z_im = (g[l].im - im) / se[l].im.hypot(se_im);
         assert!(
-            z.abs() < 4.5,
-            "lag {l}: {} +- {} against {r} +- {r_se}",
+            z_re.abs() < 4.5 && z_im.abs() < 4.5,
+            "lag {l}: {} +- {} against {re} {im:+}i ({z_re:.2}, {z_im:.2} SE)",
             g[l],
             se[l]
         );
