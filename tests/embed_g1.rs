@@ -8,10 +8,9 @@
 //! no sampling (light tracing from the face against first vertices sampled in the volume and
 //! connected to both endpoints), so their `g1` agreeing at every lag within 4.5 combined
 //! standard errors checks that the example uses the crate's factors as they are meant (a first
-//! transfer of `w1` alone, or a last one of `-w_in`, moved `g1(0.5)` by 21 standard errors without
-//! drift, and
-//! the drift's end phase with the wrong sign turns the imaginary part negative). Errors: the
-//! example's jackknife over 32 batches, the estimator's over 16 renders.
+//! transfer of `w1` alone, or a last one of `-w_in`, moved `g1(0.5)` by 21 standard errors
+//! without drift, and the drift's end phase with the wrong sign turns the imaginary part
+//! negative). Errors: the example's jackknife over 32 batches, the estimator's over 16 renders.
 //!
 //! Run time: about 1 s on two cores (release).
 
