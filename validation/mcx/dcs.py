@@ -27,13 +27,12 @@ import argparse
 import contextlib
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from mcxenv import REPO, add_run_arguments, reexec_in_venv, speckle_binary
+from mcxenv import REPO, add_run_arguments, reexec_in_venv, speckle_binary, speckle_render
 
 # The scene (cm, s).
 N_VOX = 100  # voxels per edge: 0.1 mm
@@ -263,16 +262,9 @@ def run_speckle(a) -> dict:
         (tmp / "mcx_rods.toml").write_text(scene_toml(a))
         for r in range(a.renders):
             out = tmp / f"out{r}"
-            cmd = [str(exe), "g1", str(tmp / "mcx_rods.toml"), "--quiet", "--no-png", "--out", str(out),
-                   "--seed", str(a.seed + r), "--paths", str(a.paths)]
-            if a.threads:
-                cmd += ["--threads", str(a.threads)]
-            t = time.perf_counter()
-            done = subprocess.run(cmd, capture_output=True, text=True)
-            process_s += time.perf_counter() - t
-            if done.returncode != 0:
-                raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
-            meta = json.loads((out / "mcx_rods.g1.json").read_text())
+            meta, wall = speckle_render(exe, "g1", tmp / "mcx_rods.toml", out, a.seed + r,
+                                        a.paths, a.threads)
+            process_s += wall
             render_s += meta["render"]["wall_time_s"]
             per_run.append(meta["render"]["wall_time_s"])
             threads = meta["render"]["threads"]

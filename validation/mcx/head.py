@@ -47,7 +47,7 @@ import time
 from pathlib import Path
 
 from dcs import jackknife, quiet_stdout
-from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary
+from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary, speckle_render
 
 EXAMPLE = "head"
 # Lines of `speckle example head` the MCX-CL model copies (checked in the example's text).
@@ -108,14 +108,8 @@ def run_speckle(a, exe) -> dict:
         scene.write_text(example_text(exe))
         for r in range(a.renders):
             out = tmp / f"out{r}"
-            cmd = [str(exe), "g1", str(scene), "--quiet", "--no-png", "--out", str(out),
-                   "--seed", str(a.seed + r), "--paths", str(a.paths)]
-            if a.threads:
-                cmd += ["--threads", str(a.threads)]
-            done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp)
-            if done.returncode != 0:
-                raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
-            meta = json.loads((out / f"{EXAMPLE}.g1.json").read_text())
+            meta, _ = speckle_render(exe, "g1", scene, out, a.seed + r, a.paths, a.threads,
+                                     cwd=tmp)
             per_run.append(meta["render"]["wall_time_s"])
             threads = meta["render"]["threads"]
             lags = np.load(out / f"{EXAMPLE}.lags.npy").tolist()

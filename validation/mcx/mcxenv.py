@@ -41,6 +41,29 @@ def add_run_arguments(p, json: bool = True):
     p.add_argument(IN_VENV, action="store_true", help=argparse.SUPPRESS)
 
 
+def speckle_render(exe, command: str, scene, out, seed: int, paths: int, threads: int = 0,
+                   cwd=None):
+    """Runs `speckle <command> <scene>` quietly into `out` with `seed` and `paths` (and
+    `threads` when not 0); returns the sidecar JSON (`<name>.<command>.json`, the one file in
+    `out` ending so) and the process's wall time. A failure ends the script with its message."""
+    import json
+    import time
+
+    cmd = [str(exe), command, str(scene), "--quiet", "--no-png", "--out", str(out),
+           "--seed", str(seed), "--paths", str(paths)]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    t = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=cwd)
+    wall = time.perf_counter() - t
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
+    sidecars = sorted(Path(out).glob(f"*.{command}.json"))
+    if len(sidecars) != 1:
+        raise SystemExit(f"{' '.join(cmd)} wrote {len(sidecars)} sidecars")
+    return json.loads(sidecars[0].read_text()), wall
+
+
 def venv_python(venv: Path) -> Path:
     return venv / "bin" / "python"
 

@@ -74,7 +74,7 @@ import time
 from pathlib import Path
 
 from dcs import jackknife, quiet_stdout
-from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary
+from mcxenv import add_run_arguments, reexec_in_venv, speckle_binary, speckle_render
 
 # The scene (cm, s), as `speckle example tissue_fibre`; the script checks the example's text.
 EDGE_CM = 1.0
@@ -380,16 +380,9 @@ def run_speckle(a, exe, na: float, ts) -> dict:
         scene.write_text(scene_text(exe, na, ts, a.n))
         for r in range(a.renders):
             out = tmp / f"out{r}"
-            cmd = [str(exe), "g1", str(scene), "--quiet", "--no-png", "--out", str(out),
-                   "--seed", str(a.seed + r), "--paths", str(a.paths)]
-            if a.threads:
-                cmd += ["--threads", str(a.threads)]
-            t = time.perf_counter()
-            done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp)
-            process_s += time.perf_counter() - t
-            if done.returncode != 0:
-                raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
-            meta = json.loads((out / f"{EXAMPLE}.g1.json").read_text())
+            meta, wall = speckle_render(exe, "g1", scene, out, a.seed + r, a.paths, a.threads,
+                                        cwd=tmp)
+            process_s += wall
             render_s += meta["render"]["wall_time_s"]
             per_run.append(meta["render"]["wall_time_s"])
             threads = meta["render"]["threads"]
@@ -438,14 +431,8 @@ def run_speckle_profile(a, exe) -> dict:
         scene.write_text(profile_scene_text(exe, a))
         for r in range(a.profile_renders):
             out = tmp / f"out{r}"
-            cmd = [str(exe), "intensity", str(scene), "--quiet", "--no-png", "--out", str(out),
-                   "--seed", str(a.seed + r), "--paths", str(a.profile_paths)]
-            if a.threads:
-                cmd += ["--threads", str(a.threads)]
-            done = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp)
-            if done.returncode != 0:
-                raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr}")
-            meta = json.loads((out / "tissue_profile.intensity.json").read_text())
+            meta, _ = speckle_render(exe, "intensity", scene, out, a.seed + r, a.profile_paths,
+                                     a.threads, cwd=tmp)
             per_run.append(meta["render"]["wall_time_s"])
             v = np.load(out / "tissue_profile.intensity.npy")
             e = np.load(out / "tissue_profile.intensity_stderr.npy")
