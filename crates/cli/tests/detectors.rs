@@ -304,3 +304,52 @@ fn fibre_sources_render_with_detectors_and_bad_ones_exit_2_naming_the_field() {
         assert!(stderr(&o).contains("sources[0]"), "{cmd}: {}", stderr(&o));
     }
 }
+
+#[test]
+fn a_point_sensor_on_a_face_far_from_its_source_draws_advice() {
+    // The new user: the tissue cube (mu_s = 100 /cm) with a point sensor on the face
+    // 5 mm (50 mean free paths) from the source. The warning names the sensor and the fix; the
+    // fibre itself, and the 2023 paper's DCS scene (5 mean free paths), draw none.
+    let dir = tempfile::tempdir().unwrap();
+    let tissue = speckle(dir.path(), &["example", "tissue_fibre"]);
+    let text = String::from_utf8(tissue.stdout).unwrap();
+    let point = text.replace(
+        "type = \"detector\"\nposition = [0.25, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5",
+        "type = \"point\"\nposition = [0.25, 0.0, 0.0]",
+    );
+    assert_ne!(point, text);
+    let cases = [
+        ("point.toml", point, true),
+        ("fibre.toml", text, false),
+        (
+            "dcs.toml",
+            String::from_utf8(speckle(dir.path(), &["example", "dcs"]).stdout).unwrap(),
+            false,
+        ),
+    ];
+    for (name, scene, warned) in cases {
+        let s = write(dir.path(), name, &scene);
+        let o = speckle(
+            dir.path(),
+            &[
+                "intensity",
+                s.to_str().unwrap(),
+                "--paths",
+                "2000",
+                "-q",
+                "--out",
+                "o",
+            ],
+        );
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert_eq!(e.contains("warning"), warned, "{name}: {e}");
+        if warned {
+            assert!(
+                e.contains("sensors[0] is a point on a face") && e.contains("50 mean free paths"),
+                "{e}"
+            );
+            assert!(e.contains("weighting = \"fluence\""), "{e}");
+        }
+    }
+}

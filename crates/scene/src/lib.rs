@@ -31,6 +31,7 @@ use speckle_phase::PhaseFunction;
 use std::f64::consts::TAU;
 use std::ops::Range;
 
+pub mod advice;
 pub mod build;
 pub mod cost;
 pub mod examples;

@@ -267,6 +267,9 @@ pub fn plan(
 ) -> anyhow::Result<Staged> {
     let e = e.map_err(in_scene(p))?;
     cost::guard(&e, cost::machine_memory(), run.force).map_err(in_scene(p))?;
+    for w in speckle::scene::advice::warnings(&p.scene) {
+        tell!("warning: {}: {w}", p.name);
+    }
     if !run.quiet {
         say!("{}: estimate: {}", p.name, e.describe());
     }
