@@ -424,6 +424,11 @@ impl PyProblem {
         runs::summary(&self.p)
     }
 
+    /// The advice the command line prints before a render (`speckle_scene::advice`).
+    fn advice(&self) -> Vec<String> {
+        speckle::scene::advice::warnings(&self.p.scene)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Problem({:?}: J = {}, {} sources, {} sensors)",

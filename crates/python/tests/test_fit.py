@@ -135,3 +135,21 @@ def test_fibre_sources_render_from_dicts_and_bad_ones_name_their_field(speckle_b
         with pytest.raises(speckle.SceneError) as e:
             speckle.g1(bad)
         assert e.value.field == f"sources[0].{key}", str(e.value)
+
+
+def test_a_point_sensor_on_a_face_far_from_its_source_warns():
+    """The command line's advice before a render (a point sensor on the tissue cube's face, 50
+    mean free paths from its source) comes as a `UserWarning`; the fibre itself draws none."""
+    import warnings
+
+    example = speckle.Scene.example("tissue_fibre").toml
+    point = example.replace(
+        'type = "detector"\nposition = [0.25, 0.0, 0.0]\nradius = 0.05\nnumerical_aperture = 0.5',
+        'type = "point"\nposition = [0.25, 0.0, 0.0]',
+    )
+    assert point != example
+    with pytest.warns(UserWarning, match=r"sensors\[0\] is a point on a face"):
+        speckle.intensity(point, paths=2000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        speckle.intensity(example, paths=2000)

@@ -580,8 +580,13 @@ def _shard(spec: ShardSpec) -> Tuple[int, int]:
 
 
 def _load_with(scene: SceneLike, settings: Dict[str, Any]) -> Scene:
-    """The scene with the settings that were given (not ``None``, and flags that are set)."""
-    return load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    """The scene with the settings that were given (not ``None``, and flags that are set), and
+    the advice the command line prints before a render as ``UserWarning``s (for example a point
+    sensor on a face far from its source, whose estimate has a heavy tail)."""
+    s = load(scene, **{k: v for k, v in settings.items() if v is not None and v is not False})
+    for advice in s._p.advice():
+        warnings.warn(f"{s.name}: {advice}", UserWarning, stacklevel=3)
+    return s
 
 
 def _run(
