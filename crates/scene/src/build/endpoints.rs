@@ -95,6 +95,20 @@ impl EndpointInfo {
         }
     }
 
+    /// A disc (a detector, or a fibre source: `kind`) of entry `entry`: its centre, radius and
+    /// aperture, and `direction`, the way the light goes through it.
+    fn disc(entry: usize, kind: &'static str, d: &Detector, direction: DVec3) -> Self {
+        Self {
+            entry,
+            kind,
+            position: Some(d.center().to_array()),
+            direction: Some(direction.to_array()),
+            radius: Some(d.radius()),
+            numerical_aperture: Some(d.numerical_aperture()),
+            ..Self::default()
+        }
+    }
+
     /// A Gaussian beam: its focus and the axis as given (propagation or viewing direction).
     fn gaussian(entry: usize, b: &GaussianBeam, axis: DVec3) -> Self {
         Self {
@@ -643,17 +657,11 @@ pub fn build_detectors<M: speckle_medium::Medium>(
             weighting,
         )?;
         desc.push(EndpointInfo {
-            entry: i,
-            kind: "detector",
-            position: Some(d.center().to_array()),
-            direction: Some(d.axis().to_array()),
-            radius: Some(d.radius()),
-            numerical_aperture: Some(d.numerical_aperture()),
             weighting: Some(match d.weighting() {
                 Weighting::Flux => "flux",
                 Weighting::Fluence => "fluence",
             }),
-            ..EndpointInfo::default()
+            ..EndpointInfo::disc(i, "detector", &d, d.axis())
         });
         out.push(d);
     }
@@ -689,15 +697,7 @@ pub fn build_fibres<M: speckle_medium::Medium>(
                 axis.map(DVec3::from_array),
                 outside_index,
             )?;
-            let info = EndpointInfo {
-                entry: i,
-                kind: "fibre",
-                position: Some(f.center().to_array()),
-                direction: Some((-f.axis()).to_array()),
-                radius: Some(f.radius()),
-                numerical_aperture: Some(f.numerical_aperture()),
-                ..EndpointInfo::default()
-            };
+            let info = EndpointInfo::disc(i, "fibre", &f, -f.axis());
             Ok(Some((f, info)))
         })
         .collect()
