@@ -22,14 +22,17 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod beam;
 mod factor;
 mod first;
 mod light;
+mod mixture;
 
 mod tracer;
 
+pub use beam::{Beam, BeamStrategy};
 pub use factor::{FactorValue, NoFactor, PathFactor};
-pub use first::{Beam, BeamStrategy, FirstDirection, FirstVertex};
+pub use first::{FirstDirection, FirstVertex};
 pub use light::{Disc, Emission, ForkSink, WeightWindow};
 pub use speckle_stats::PathRng;
 pub use tracer::{

@@ -1,8 +1,8 @@
 //! The sub-path tracer.
 
-use crate::first::{
-    BeamSampler, Component, EndpointMixture, FirstDirectionSampler, FirstVertexSampler,
-};
+use crate::beam::BeamSampler;
+use crate::first::{FirstDirectionSampler, FirstVertexSampler};
+use crate::mixture::{Component, EndpointMixture};
 use crate::{Beam, BeamStrategy, Coherence, FirstDirection, FirstVertex, PathError, PathRng};
 use glam::DVec3;
 use speckle_medium::{Interface, Medium};
