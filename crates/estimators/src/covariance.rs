@@ -116,6 +116,17 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
     }
 
     #[inline]
+    fn branches(&self) -> bool {
+        true
+    }
+
+    fn branch(&mut self, v: &Vertex, rng: &mut PathRng) {
+        let saved = self.state.clone();
+        self.vertex(v, rng);
+        *self.state = saved;
+    }
+
+    #[inline]
     fn keep_going(&mut self) -> bool {
         !self.poll.cancelled()
     }

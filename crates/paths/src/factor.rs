@@ -21,8 +21,9 @@ use num_complex::Complex64;
 
 /// A factor on every path contribution, updated at every vertex (see the module docs).
 pub trait PathFactor: Sync {
-    /// Per-path state (a running product, accumulated momentum transfer, the previous vertex).
-    type State: Default;
+    /// Per-path state (a running product, accumulated momentum transfer, the previous vertex);
+    /// cloned to evaluate a branch off the path ([`crate::VertexSink::branch`]).
+    type State: Default + Clone;
     /// The factor's value: [`f64`] or `Complex64`.
     type Value: FactorValue;
     /// Starts a path at `x1` (particle type `ty`): resets `state` and returns the factor of the

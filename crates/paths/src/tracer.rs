@@ -163,6 +163,22 @@ pub trait VertexSink {
     fn keep_going(&mut self) -> bool {
         true
     }
+    /// Whether this sink takes branch vertices ([`VertexSink::branch`]), asked once per path.
+    /// The tracer then samples, with point endpoints next to the medium, last vertices around
+    /// the points as well, and weighs every vertex by the balance heuristic of all its
+    /// techniques (see [`Tracer::with_point_endpoints`]). The default is `false`: vertices keep
+    /// the heuristic of the two orders alone.
+    #[inline]
+    fn branches(&self) -> bool {
+        false
+    }
+    /// A branch: the path `x_1 .. x_b, v.x` that leaves the sub-path at its last vertex `x_b`
+    /// (the one handed to [`VertexSink::first`] or [`VertexSink::vertex`] last) for a vertex
+    /// sampled around a point endpoint. It contributes as a vertex does ([`Vertex::weight`],
+    /// [`Vertex::both_orders`]), but the sub-path goes on from `x_b`: the sink's per-path state
+    /// must be as it was before the call. Only called when [`VertexSink::branches`] is true.
+    #[inline]
+    fn branch(&mut self, _v: &Vertex, _rng: &mut PathRng) {}
 }
 
 /// Samples sub-paths in a medium with a phase function (Alg. 1, with roulette at every `b >= 2`).
@@ -246,7 +262,12 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     /// two orders ([`Vertex::both_orders`]), so that the last vertex, too, is in effect sampled
     /// from around a point sensor: the `1/r^2` of a point endpoint's connection, which gives
     /// the plain estimator infinite variance next to the endpoint, is cancelled by the density
-    /// at both ends of a path. Points farther away are left to the plain strategy, and without
+    /// at both ends of a path. With an anisotropic phase function a point component also draws
+    /// the first direction from the phase function about the ray from its point. A sink that
+    /// takes branches ([`VertexSink::branches`]) also receives, from every vertex, last vertices
+    /// sampled around the points, and every vertex then carries the balance heuristic of four
+    /// techniques (`tracer/branch.rs`): the two orders alone leave a path whose two ends lie
+    /// next to two points with both `1/r^2` factors, and a diverging variance. Points farther away are left to the plain strategy, and without
     /// any near point the tracer is unchanged (bitwise). Every vertex evaluates the density of
     /// every component: when more than [`MAX_OUTSIDE_COMPONENTS`] points are near, only those in
     /// or on the medium's box (which need it) get components.
@@ -389,6 +410,7 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             rates,
             beams,
             dimension: m.dimension(),
+            point_directions: np > 0 && self.phases.iter().any(|p| !is_isotropic(p)),
         });
         self
     }
@@ -519,9 +541,41 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             return 0;
         };
         sink.first(x1, type1, w_single, rng);
+        let branching = self.branching(sink);
+        if branching {
+            self.branch_first(x1, type1, w_single, rng, sink);
+        }
+        let Some((w12, weight)) = self.sample_first_direction(x1, type1, w_single, from, rng)
+        else {
+            return 1;
+        };
+        let mut w = Walker::start(x1, type1, w12, weight);
+        w.branching = branching;
+        w.q1_marginal = self.medium.sigma_s(x1) / w_single;
+        1 + self.walk_from(&mut w, w12, rng, sink, |w, rng, sink| {
+            if branching {
+                self.branch_at(w, rng, sink);
+            }
+            true
+        })
+    }
+
+    /// The first direction `w12` of a path from `x1` (type `type1`, single-scattering weight
+    /// `w_single`, sampled by component `from`) and the path's weight `sigma_s(x1) / q(x1, w12)`
+    /// with the joint density `q` of the first vertex and direction; `None` where that density
+    /// vanishes.
+    #[inline]
+    fn sample_first_direction(
+        &self,
+        x1: DVec3,
+        type1: usize,
+        w_single: f64,
+        from: Component,
+        rng: &mut PathRng,
+    ) -> Option<(DVec3, f64)> {
         let phase1 = &self.phases[type1];
         let joint = self.points.as_ref().is_some_and(|p| p.samples_directions());
-        let (w12, weight) = if joint {
+        if joint {
             // The direction from the strategy of the sampling component, the weight from the
             // joint density of the whole mixture.
             let w12 = match (from, &self.points) {
@@ -529,21 +583,23 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
                     let c = rng.next_f64();
                     p.beams[j].sample_direction(phase1, x1, c, rng.next_2())
                 }
+                (Component::Point(k), Some(p)) if p.point_directions => {
+                    phase1.sample_direction(p.ray(k, x1), rng.next_2())
+                }
                 _ => self.first_direction.sample(phase1, rng.next_2()).0,
             };
             let p = self.joint_pdf(x1, w12, type1);
             if p <= 0.0 || !p.is_finite() {
-                return 1;
+                return None;
             }
-            (w12, self.medium.sigma_s(x1) / p)
+            Some((w12, self.medium.sigma_s(x1) / p))
         } else {
             let (w12, p_w) = self.first_direction.sample(phase1, rng.next_2());
             if p_w <= 0.0 {
-                return 1;
+                return None;
             }
-            (w12, w_single / p_w)
-        };
-        self.walk(x1, type1, w12, weight, rng, sink)
+            Some((w12, w_single / p_w))
+        }
     }
 
     /// A flight from `x` along `dir` that reaches the box's boundary: reflected back in with
@@ -636,15 +692,21 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
             w.length += d;
             added += 1;
             let ty = self.sample_type(next, rng);
-            let both_orders = match self.points {
+            let both_orders = match &self.points {
                 _ if !self.both_orders => f64::NAN,
                 None => 0.5,
                 // q(x^r) / q(x) = weight / w_rev, w_rev = sigma_s(x_b) / (q_o(x_b) p(-w_in)):
                 // the interior densities of the two orders are equal (flights and roulette
                 // give sigma_s at every vertex but the first, phase functions are symmetric).
-                Some(_) => {
+                Some(p) => {
                     let p_rev = self.joint_pdf(next, -dir, ty);
-                    1.0 / (1.0 + w.weight * p_rev / self.medium.sigma_s(next))
+                    let reversed = w.weight * p_rev / self.medium.sigma_s(next);
+                    let branches = if w.branching {
+                        self.branch_ratios(p, w, next, dir, p_rev, reversed)
+                    } else {
+                        0.0
+                    };
+                    1.0 / (1.0 + reversed + branches)
                 }
             };
             sink.vertex(
@@ -676,6 +738,13 @@ impl<'a, M: Medium, P: PhaseFunction> Tracer<'a, M, P> {
     }
 }
 
+/// Whether `p` scatters isotropically: an amplitude of one lobe of concentration zero (the
+/// phase functions without lobes are taken as anisotropic).
+fn is_isotropic<P: PhaseFunction>(p: &P) -> bool {
+    p.amplitude_lobes()
+        .is_some_and(|l| l.iter().all(|&(gamma, _)| gamma == 0.0))
+}
+
 /// Where a walking path is: its first vertex and direction, its last vertex with the direction
 /// it arrived along and the particle type there, its vertex count, its weight and the length of
 /// its flights since `x1`.
@@ -690,6 +759,16 @@ pub(crate) struct Walker {
     pub(crate) b: u32,
     pub(crate) weight: f64,
     pub(crate) length: f64,
+    /// Whether the path branches ([`VertexSink::branches`]): its vertices weigh the branch
+    /// techniques too.
+    pub(crate) branching: bool,
+    /// The marginal first-vertex density `q_o(x1)` (branching paths).
+    pub(crate) q1_marginal: f64,
+    /// `Q_p(x1 | x2) / f(x2 -> x1)` once `x2` is known: the reversed branch's density of `x1`
+    /// over the flight it replaces, without the phase function at `x2` (branching paths).
+    pub(crate) back: f64,
+    /// `back / rho_2(w12 . w23)` once `x3` is known (branching paths).
+    pub(crate) crossed: f64,
 }
 
 impl Walker {
@@ -705,9 +784,14 @@ impl Walker {
             b: 1,
             weight,
             length: 0.0,
+            branching: false,
+            q1_marginal: f64::NAN,
+            back: f64::NAN,
+            crossed: f64::NAN,
         }
     }
 }
 
+mod branch;
 #[cfg(test)]
 mod tests;

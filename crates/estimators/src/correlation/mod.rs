@@ -313,6 +313,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             cross_sen: Vec::new(),
             cross_src: Vec::new(),
             inside: vec![true; lags.len()],
+            inside_saved: Vec::with_capacity(lags.len()),
             brown: PathRng::new(plan.key, 0),
             z1: DVec3::ZERO,
             zb: DVec3::ZERO,

@@ -90,6 +90,8 @@ pub(super) struct Scratch<'s, M, P> {
     /// (displaced by `-/+ t U / 2`); a path through a scatterer that is outside the medium at
     /// either time contributes nothing at that lag.
     pub(super) inside: Vec<bool>,
+    /// `inside` saved across a branch ([`VertexSink::branch`]).
+    pub(super) inside_saved: Vec<bool>,
 }
 
 pub(super) struct CorrelationSink<'a, 's, 'p, M, P> {
@@ -593,6 +595,30 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 w *= Complex64::from_polar(1.0, k * (w1.dot(d1) - w_in.dot(db)));
             }
             self.push_lag(2 * l + 1, l, w);
+        }
+    }
+
+    #[inline]
+    fn branches(&self) -> bool {
+        true
+    }
+
+    /// The path's state is its motion state and, with drift, whether its vertices stay in the
+    /// box at each lag; both are restored. (A branch's sampled Brownian displacement is drawn
+    /// from the path's stream of them like a vertex's: the draws stay independent.)
+    fn branch(&mut self, v: &Vertex, rng: &mut PathRng) {
+        let saved = self.s.state;
+        if self.plan.displaced {
+            let s = &mut *self.s;
+            s.inside_saved.clear();
+            s.inside_saved.extend_from_slice(&s.inside);
+        }
+        self.vertex(v, rng);
+        self.s.state = saved;
+        if self.plan.displaced {
+            let s = &mut *self.s;
+            s.inside.clear();
+            s.inside.extend_from_slice(&s.inside_saved);
         }
     }
 
