@@ -29,12 +29,27 @@ use speckle_stats::BatchSum;
 /// number of lags): `delta` is the smallest non-zero `|t|` divided by a whole number up to
 /// [`Powers::MAX_DIVISOR`], so log-spaced DCS grids such as `2, 5, 10, 20, ... 200` times
 /// `1e-7` qualify (`delta = 1e-7`).
+///
+/// Lags written to a few significant digits (`3.174603e-07, 6.349206e-07, ...`, as a file or a
+/// correlator gives them) are whole multiples only to within their rounding:
+/// `|t_l| = m_l delta (1 + eps_l)`, `|eps_l| <=` [`Powers::ROUNDING`]. Their factor
+/// `exp(-x m_l (1 + eps_l))` is then interpolated, linearly in `eps`, between the powers at the
+/// step (`s = 0`) and at the step stretched by `1 + eta` (`s = eta`, the largest `|eps_l|` with
+/// its sign): two sums of powers, weighted `1 - eps_l / eta` and `eps_l / eta` at each lag. The
+/// interpolation's error is at most `(x m)^2 e^{-x m} |eps (eps - eta)| / 2 <= 0.54 eta^2`
+/// relative to the term's weight: below `2e-13` for seven significant digits (`eta` up to about
+/// `6e-7`, the step itself being a rounded lag) and `6e-11` at the largest rounding accepted.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Powers {
     /// The step `delta`.
     pub delta: f64,
     /// The non-zero lags `(l, m_l)`, by increasing `m_l`.
     pub order: Vec<(usize, usize)>,
+    /// Each lag's relative rounding `eps_l` (in the order of `order`); all zero for whole
+    /// multiples.
+    pub rounding: Vec<f64>,
+    /// The stretch `eta` of the second sums (zero for whole multiples: no second sums).
+    pub eta: f64,
 }
 
 impl Powers {
@@ -43,9 +58,19 @@ impl Powers {
     const MAX_STEPS: usize = 32;
     /// The largest divisor of the smallest lag tried as the step.
     const MAX_DIVISOR: usize = 16;
+    /// The largest relative rounding `|eps_l|` of a lag taken as a multiple of the step (six
+    /// significant digits).
+    pub const ROUNDING: f64 = 1e-5;
 
-    /// The powers of `lags` when they are whole multiples of one step.
+    /// The powers of `lags` when they are whole multiples of one step, exactly (to `1e-12`) or
+    /// else to within [`Self::ROUNDING`].
     pub fn of(lags: &[f64]) -> Option<Self> {
+        Self::within(lags, 1e-12).or_else(|| Self::within(lags, Self::ROUNDING))
+    }
+
+    /// The powers of `lags` when they are whole multiples of one step to within `tolerance`
+    /// (relative); roundings below `1e-12` are taken as exact.
+    fn within(lags: &[f64], tolerance: f64) -> Option<Self> {
         let smallest = lags
             .iter()
             .map(|t| t.abs())
@@ -63,14 +88,37 @@ impl Powers {
                     continue;
                 }
                 let m = (t.abs() / delta).round();
-                if (m * delta - t.abs()).abs() > 1e-12 * t.abs() || m > most {
+                if (m * delta - t.abs()).abs() > tolerance * t.abs() || m < 1.0 || m > most {
                     return None;
                 }
-                order.push((l, m as usize));
+                let eps = t.abs() / (m * delta) - 1.0;
+                let eps = if eps.abs() <= 1e-12 { 0.0 } else { eps };
+                order.push((l, m as usize, eps));
             }
-            order.sort_by_key(|&(l, m)| (m, l));
-            Some(Self { delta, order })
+            order.sort_by_key(|&(l, m, _)| (m, l));
+            let eta = order
+                .iter()
+                .map(|o| o.2)
+                .fold(0.0, |a: f64, e| if e.abs() > a.abs() { e } else { a });
+            Some(Self {
+                delta,
+                order: order.iter().map(|&(l, m, _)| (l, m)).collect(),
+                rounding: order.iter().map(|o| o.2).collect(),
+                eta,
+            })
         })
+    }
+
+    /// The weights of the sums at the step (`stretched` false) or at the stretched step, in
+    /// the order of `order`.
+    fn weights(&self, stretched: bool) -> Vec<f64> {
+        self.rounding
+            .iter()
+            .map(|&e| {
+                let f = if self.eta == 0.0 { 0.0 } else { e / self.eta };
+                if stretched { f } else { 1.0 - f }
+            })
+            .collect()
     }
 
     /// The non-zero lags' indices `l` and their step counts `m_l`, apart, in `order`.
@@ -118,14 +166,35 @@ pub(crate) struct PowerSums {
     /// AVX-512 or AVX2 where the CPU has them). The loops use no fused multiply-adds, so every
     /// instruction set gives bitwise the same sums.
     arch: pulp::Arch,
+    /// The weight of each lag's sums when flushed (in the order of the sums): 1 for whole
+    /// multiples of the step, else the interpolation's ([`Powers`]).
+    weights: Vec<f64>,
+    /// Lags rounded to within [`Powers::ROUNDING`]: the sums at the stretched step, and the
+    /// stretch `1 + eta` of the terms' exponents added to them.
+    twin: Option<(Box<PowerSums>, f64)>,
+    /// Scratch: the stretched terms.
+    stretched: Vec<(usize, Complex64, f64)>,
 }
 
 impl PowerSums {
     /// Powers below this are taken as zero (with the rest of a term's lags).
     pub const TINY: f64 = 1e-280;
 
-    /// Empty sums of `entries` entries at the lags of `p`.
+    /// Empty sums of `entries` entries at the lags of `p` (with the sums at the stretched step
+    /// when the lags are rounded multiples of it).
     pub fn new(p: &Powers, entries: usize) -> Self {
+        let mut sums = Self::at_step(p, entries, p.weights(false));
+        if p.eta != 0.0 {
+            let twin = Self::at_step(p, entries, p.weights(true));
+            sums.twin = Some((Box::new(twin), 1.0 + p.eta));
+        } else {
+            sums.weights.fill(1.0);
+        }
+        sums
+    }
+
+    /// Empty sums at one step, flushed with `weights`.
+    fn at_step(p: &Powers, entries: usize, weights: Vec<f64>) -> Self {
         let (lags, steps) = p.lags_and_steps();
         let contiguous = steps.iter().enumerate().all(|(k, &m)| m == k + 1);
         let max = steps.last().copied().unwrap_or(0);
@@ -154,6 +223,9 @@ impl PowerSums {
             whole,
             touched: false,
             arch: pulp::Arch::new(),
+            weights,
+            twin: None,
+            stretched: Vec::new(),
         }
     }
 
@@ -162,6 +234,13 @@ impl PowerSums {
     pub fn add(&mut self, terms: &[(usize, Complex64, f64)]) {
         if terms.is_empty() {
             return;
+        }
+        if let Some((twin, stretch)) = &mut self.twin {
+            self.stretched.clear();
+            let s = *stretch;
+            self.stretched
+                .extend(terms.iter().map(|&(e, z, x)| (e, z, x * s)));
+            twin.add(&self.stretched);
         }
         self.touched = true;
         let arch = self.arch;
@@ -218,11 +297,14 @@ impl PowerSums {
             for (e, b) in buf.iter_mut().enumerate() {
                 *b = Complex64::new(self.re[e * n + k], self.im[e * n + k]);
             }
-            sums[part(l)].push_values(buf, Complex64::new(1.0, 0.0));
+            sums[part(l)].push_values(buf, Complex64::new(self.weights[k], 0.0));
         }
         self.re.fill(0.0);
         self.im.fill(0.0);
         self.touched = false;
+        if let Some((twin, _)) = &mut self.twin {
+            twin.flush(sums, part, buf);
+        }
     }
 }
 
@@ -517,6 +599,11 @@ pub(crate) struct SlotSums {
     /// [`PowerSums`] instead, through `terms`.
     few: Option<PowerSums>,
     terms: Vec<(usize, Complex64, f64)>,
+    /// The weight of each lag's sums when flushed, as [`PowerSums`]'s.
+    weights: Vec<f64>,
+    /// Lags rounded to within [`Powers::ROUNDING`]: the sums at the stretched step and the
+    /// stretch of the exponents, as [`PowerSums`]'s.
+    twin: Option<(Box<SlotSums>, f64)>,
 }
 
 impl SlotSums {
@@ -531,6 +618,19 @@ impl SlotSums {
     /// Empty sums of `entries` entries of `per_entry` (1 to 4) term combinations each at the
     /// lags of `p`.
     pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
+        let mut sums = Self::at_step(p, entries, per_entry, p.weights(false));
+        if p.eta != 0.0 && sums.few.is_none() {
+            let twin = Self::at_step(p, entries, per_entry, p.weights(true));
+            sums.twin = Some((Box::new(twin), 1.0 + p.eta));
+        } else {
+            sums.weights.fill(1.0);
+        }
+        sums
+    }
+
+    /// Empty sums at one step, flushed with `weights` (with fewer than [`Self::FEW`]
+    /// entries, a [`PowerSums`] with both steps).
+    fn at_step(p: &Powers, entries: usize, per_entry: usize, weights: Vec<f64>) -> Self {
         assert!((1..=4).contains(&per_entry), "1 to 4 term combinations");
         let (lags, steps) = p.lags_and_steps();
         let width = entries.div_ceil(Self::LANES) * Self::LANES;
@@ -551,6 +651,8 @@ impl SlotSums {
             arch: pulp::Arch::new(),
             few: (entries < Self::FEW).then(|| PowerSums::new(p, entries)),
             terms: Vec::new(),
+            weights,
+            twin: None,
         }
     }
 
@@ -589,6 +691,13 @@ impl SlotSums {
             self.z.fill(0.0);
             return;
         }
+        if let Some((twin, stretch)) = &mut self.twin {
+            twin.z.copy_from_slice(&self.z);
+            for (x, &y) in twin.x.iter_mut().zip(&self.x) {
+                *x = y * *stretch;
+            }
+            twin.add();
+        }
         let arch = self.arch;
         match self.per_entry {
             1 => arch.dispatch(AddSlots::<1> { sums: self }),
@@ -620,9 +729,13 @@ impl SlotSums {
             for (b, &v) in buf.iter_mut().zip(row) {
                 *b = Complex64::new(v, 0.0);
             }
-            sums[part(l)].push_values(&buf[..self.entries], Complex64::new(1.0, 0.0));
+            let w = Complex64::new(self.weights[k], 0.0);
+            sums[part(l)].push_values(&buf[..self.entries], w);
         }
         self.sums.fill(0.0);
+        if let Some((twin, _)) = &mut self.twin {
+            twin.flush(sums, part, buf);
+        }
     }
 }
 

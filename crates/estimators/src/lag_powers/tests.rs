@@ -260,7 +260,85 @@ fn irregular_lags_take_no_powers() {
     assert!(Powers::of(&[0.1, 0.1 * std::f64::consts::PI]).is_none());
     assert!(Powers::of(&[0.0]).is_none());
     assert!(Powers::of(&[0.1, 100.0]).is_none());
-    assert!(Powers::of(&[0.1, 0.1 + 1e-9]).is_none());
+    assert!(Powers::of(&[0.1, 0.1 + 1e-4]).is_none());
+    assert!(Powers::of(&[0.1, 0.3 * (1.0 + 2e-5)]).is_none());
+    // Within rounding: a second sum at the stretched step.
+    let p = Powers::of(&[0.1, 0.1 + 1e-9]).unwrap();
+    assert!((p.eta - 1e-8).abs() < 1e-12 && p.rounding[0] == 0.0);
+    assert_eq!(Powers::of(&[0.1, 0.3]).unwrap().eta, 0.0);
+}
+
+/// A lag grid written to seven significant digits (`i 2e-5 / 63`, as a correlator gives it):
+/// `|t| = m delta (1 + eps)`, `|eps|` up to `3.7e-7` (the step, the first lag, is rounded too).
+fn seven_digits() -> Vec<f64> {
+    (0..=64)
+        .map(|i| format!("{:.6e}", i as f64 * 2e-5 / 63.0).parse().unwrap())
+        .collect()
+}
+
+/// Lags that are multiples of one step only to within their rounding take powers of the step,
+/// and the interpolation between the sums at the step and at the stretched step gives
+/// `sum z exp(-x |t| / delta)` at each lag's own `|t|` to within the powers' rounding and
+/// `0.54 eta^2 = 7.3e-14` of the terms' weights `|z|` (the interpolation's bound): power sums
+/// (two entries) and slot sums (eleven entries, and two by the power sums' route). Taking the
+/// nearest multiple instead is off by up to `3.7e-7 m x` of the terms' values.
+#[test]
+fn rounded_lags_are_interpolated_between_two_steps() {
+    let lags = seven_digits();
+    let p = Powers::of(&lags).unwrap();
+    assert!(p.eta != 0.0 && p.eta.abs() < 6e-7, "{}", p.eta);
+    assert_eq!(p.order.len(), 64);
+    let xs = [1e-3, 0.02, 0.3, 2.5];
+    let mut s = PowerSums::new(&p, 2);
+    for &x in &xs {
+        s.add(&[(1, Complex64::new(2.0, -1.0), x)]);
+    }
+    let layout = speckle_stats::Layout::GeneralDiagonal;
+    let mut sums = vec![BatchSum::new(layout, 2, &Default::default()); lags.len()];
+    let mut buf = vec![Complex64::ZERO; 2];
+    s.flush(&mut sums, |l| l, &mut buf);
+    for (l, sum) in sums.into_iter().enumerate() {
+        let got = sum.finish()[1];
+        let u = lags[l] / p.delta;
+        let (mut want, mut size, mut weights) = (Complex64::ZERO, 0.0, 0.0);
+        for &x in &xs {
+            let v = Complex64::new(2.0, -1.0) * (-u * x).exp();
+            if lags[l] != 0.0 && v.norm() >= PowerSums::TINY {
+                want += v;
+                size += v.norm();
+                weights += 5f64.sqrt();
+            }
+        }
+        let bound = 0.54 * p.eta * p.eta * weights;
+        let tol = ((u + 16.0) * 2.0 + u * 2.5) * f64::EPSILON * size + bound + 1e-250;
+        assert!((got - want).norm() <= tol, "lag {l}: {got} vs {want}");
+    }
+    for entries in [11, 2] {
+        let terms = slot_terms(entries, 3);
+        let got = slot_sums(&lags, entries, None, &terms);
+        for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
+            let u = t / p.delta;
+            for (e, g) in row.iter().enumerate() {
+                let (mut want, mut size, mut cond, mut weights) = (0.0, 0.0, 0.0, 0.0);
+                for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
+                    let v = if *t == 0.0 { 0.0 } else { z * (-u * x).exp() };
+                    if v.abs() >= PowerSums::TINY {
+                        want += v;
+                        size += v.abs();
+                        cond += v.abs() * u * x / 2.0;
+                        weights += z.abs();
+                    }
+                }
+                let bound = 0.54 * p.eta * p.eta * weights;
+                let tol = ((u + 16.0) * size + cond) * f64::EPSILON + bound + 1e-250;
+                assert!(
+                    (g.re - want).abs() <= tol,
+                    "lag {l}, entry {e} of {entries}: {} vs {want} (tolerance {tol:e})",
+                    g.re
+                );
+            }
+        }
+    }
 }
 
 #[test]
