@@ -109,6 +109,68 @@ impl Powers {
         })
     }
 
+    /// Steps beyond which the lags are split into runs ([`Self::runs`]).
+    const DENSE: usize = 256;
+    /// Most distinct steps of a run.
+    const RUN: usize = 32;
+
+    /// Lags whose largest step count exceeds [`Self::DENSE`] (a multi-tau grid: eight lags per
+    /// level, the step doubling per level), split into runs of equally spaced step counts
+    /// `m = o + s m'`, `m' = 1, 2, ...` (up to [`Self::RUN`] distinct ones), each with the
+    /// powers of its own step `s` from offset `o`: `exp(-x m) = exp(-x o) (exp(-x s))^m'`, one
+    /// exponential per run and term instead of products up to the largest step count. A
+    /// lag's rounding becomes `eps m / (m - o)` within its run. `None` for denser grids.
+    fn runs(&self) -> Option<Vec<(usize, usize, Powers)>> {
+        let n = self.order.len();
+        if self.order.last()?.1 <= Self::DENSE {
+            return None;
+        }
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < n {
+            let m0 = self.order[i].1;
+            let after =
+                |from: usize, m: usize| (from..n).find(|&j| self.order[j].1 != m).unwrap_or(n);
+            let j = after(i, m0);
+            let (stride, offset) = match self.order.get(j) {
+                Some(&(_, m1)) if m1 - m0 <= m0 => (m1 - m0, m0 - (m1 - m0)),
+                _ => (m0, 0),
+            };
+            let (mut end, mut next, mut count) = (j, m0 + stride, 1);
+            while end < n && self.order[end].1 == next && count < Self::RUN {
+                end = after(end, next);
+                next += stride;
+                count += 1;
+            }
+            let order: Vec<(usize, usize)> = self.order[i..end]
+                .iter()
+                .map(|&(l, m)| (l, (m - offset) / stride))
+                .collect();
+            let rounding: Vec<f64> = (i..end)
+                .map(|k| {
+                    let m = self.order[k].1 as f64;
+                    self.rounding[k] * m / (m - offset as f64)
+                })
+                .collect();
+            let eta = rounding
+                .iter()
+                .fold(0.0, |a: f64, &e| if e.abs() > a.abs() { e } else { a });
+            let delta = self.delta * stride as f64;
+            out.push((
+                offset,
+                stride,
+                Powers {
+                    delta,
+                    order,
+                    rounding,
+                    eta,
+                },
+            ));
+            i = end;
+        }
+        Some(out)
+    }
+
     /// The weights of the sums at the step (`stretched` false) or at the stretched step, in
     /// the order of `order`.
     fn weights(&self, stretched: bool) -> Vec<f64> {
@@ -174,6 +236,9 @@ pub(crate) struct PowerSums {
     twin: Option<(Box<PowerSums>, f64)>,
     /// Scratch: the stretched terms.
     stretched: Vec<(usize, Complex64, f64)>,
+    /// A sparse grid's runs ([`Powers::runs`]): their sums, offsets and steps (the sums of
+    /// this one then hold no lags).
+    runs: Vec<(PowerSums, usize, usize)>,
 }
 
 impl PowerSums {
@@ -183,6 +248,20 @@ impl PowerSums {
     /// Empty sums of `entries` entries at the lags of `p` (with the sums at the stretched step
     /// when the lags are rounded multiples of it).
     pub fn new(p: &Powers, entries: usize) -> Self {
+        if let Some(runs) = p.runs() {
+            let empty = Powers {
+                delta: p.delta,
+                order: vec![],
+                rounding: vec![],
+                eta: 0.0,
+            };
+            let mut sums = Self::at_step(&empty, entries, vec![]);
+            sums.runs = runs
+                .iter()
+                .map(|(o, s, run)| (Self::new(run, entries), *o, *s))
+                .collect();
+            return sums;
+        }
         let mut sums = Self::at_step(p, entries, p.weights(false));
         if p.eta != 0.0 {
             let twin = Self::at_step(p, entries, p.weights(true));
@@ -226,6 +305,7 @@ impl PowerSums {
             weights,
             twin: None,
             stretched: Vec::new(),
+            runs: Vec::new(),
         }
     }
 
@@ -233,6 +313,21 @@ impl PowerSums {
     /// `(e, z, x)` of `terms` (`x >= 0`).
     pub fn add(&mut self, terms: &[(usize, Complex64, f64)]) {
         if terms.is_empty() {
+            return;
+        }
+        if !self.runs.is_empty() {
+            self.touched = true;
+            for (sums, offset, stride) in &mut self.runs {
+                let (o, s) = (*offset as f64, *stride as f64);
+                self.stretched.clear();
+                for &(e, z, x) in terms {
+                    let z = if *offset == 0 { z } else { z * exp_neg(x * o) };
+                    if z != Complex64::ZERO {
+                        self.stretched.push((e, z, x * s));
+                    }
+                }
+                sums.add(&self.stretched);
+            }
             return;
         }
         if let Some((twin, stretch)) = &mut self.twin {
@@ -280,6 +375,17 @@ impl PowerSums {
         part: impl Fn(usize) -> usize,
         buf: &mut [Complex64],
     ) {
+        self.flush_parts(sums, &part, buf);
+    }
+
+    /// [`Self::flush`] (through a reference to `part`: the twin and the runs flush the same
+    /// way).
+    fn flush_parts(
+        &mut self,
+        sums: &mut [BatchSum],
+        part: &dyn Fn(usize) -> usize,
+        buf: &mut [Complex64],
+    ) {
         if !self.touched {
             return;
         }
@@ -303,7 +409,10 @@ impl PowerSums {
         self.im.fill(0.0);
         self.touched = false;
         if let Some((twin, _)) = &mut self.twin {
-            twin.flush(sums, part, buf);
+            twin.flush_parts(sums, part, buf);
+        }
+        for (run, _, _) in &mut self.runs {
+            run.flush_parts(sums, part, buf);
         }
     }
 }
@@ -649,7 +758,7 @@ impl SlotSums {
             least: PowerSums::TINY.powf(1.0 / most as f64) * 1.001,
             touched: false,
             arch: pulp::Arch::new(),
-            few: (entries < Self::FEW).then(|| PowerSums::new(p, entries)),
+            few: (entries < Self::FEW || p.runs().is_some()).then(|| PowerSums::new(p, entries)),
             terms: Vec::new(),
             weights,
             twin: None,

@@ -351,3 +351,91 @@ fn a_log_spaced_dcs_grid_takes_powers_of_its_common_step() {
     let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
     assert_eq!(steps, [2, 5, 10, 20, 30, 40, 50, 60, 80, 100, 150, 200]);
 }
+
+/// A multi-tau grid: eight lags per level, the step doubling per level, 63 non-zero lags up
+/// to 1912 steps (and, with `digits`, each lag written to seven significant digits).
+fn multi_tau(digits: bool) -> Vec<f64> {
+    let mut lags = vec![0.0];
+    let (mut m, mut step) = (0, 1);
+    while lags.len() < 64 {
+        for _ in 0..8 {
+            if lags.len() < 64 {
+                m += step;
+                let t = m as f64 * 3e-7 / 7.0;
+                lags.push(if digits {
+                    format!("{t:.6e}").parse().unwrap()
+                } else {
+                    t
+                });
+            }
+        }
+        step *= 2;
+    }
+    lags
+}
+
+/// A multi-tau grid is split into runs of equally spaced steps, one per level
+/// ([`Powers::runs`]), and the sums are `sum z exp(-x |t| / delta)` at every lag to rounding
+/// (plus, for rounded lags, the interpolation's bound `0.54 eta^2` of the weights, `eta` the
+/// largest rounding within a run): power sums and slot sums (eleven entries).
+#[test]
+fn multi_tau_lags_take_runs_of_their_own_steps() {
+    for digits in [false, true] {
+        let lags = multi_tau(digits);
+        let p = Powers::of(&lags).unwrap();
+        let runs = p.runs().expect("runs");
+        assert_eq!(runs.len(), 8, "one run per level");
+        let eta = runs.iter().map(|r| r.2.eta.abs()).fold(0.0, f64::max);
+        assert!(digits == (eta > 0.0) && eta < 1e-5, "{eta}");
+        let xs = [1e-4, 3e-3, 0.05, 0.9];
+        let mut s = PowerSums::new(&p, 2);
+        for &x in &xs {
+            s.add(&[(1, Complex64::new(2.0, -1.0), x)]);
+        }
+        let layout = speckle_stats::Layout::GeneralDiagonal;
+        let mut sums = vec![BatchSum::new(layout, 2, &Default::default()); lags.len()];
+        let mut buf = vec![Complex64::ZERO; 2];
+        s.flush(&mut sums, |l| l, &mut buf);
+        for (l, sum) in sums.into_iter().enumerate() {
+            let got = sum.finish()[1];
+            let u = lags[l] / p.delta;
+            let (mut want, mut size, mut weights) = (Complex64::ZERO, 0.0, 0.0);
+            for &x in &xs {
+                let v = Complex64::new(2.0, -1.0) * (-u * x).exp();
+                if lags[l] != 0.0 && v.norm() >= PowerSums::TINY {
+                    want += v;
+                    size += v.norm();
+                    weights += 5f64.sqrt();
+                }
+            }
+            let tol = (64.0 + u * 0.9) * f64::EPSILON * size + 0.54 * eta * eta * weights + 1e-250;
+            assert!(
+                (got - want).norm() <= tol,
+                "{digits} lag {l}: {got} vs {want}"
+            );
+        }
+        let terms = slot_terms(11, 3);
+        let got = slot_sums(&lags, 11, None, &terms);
+        for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
+            let u = t / p.delta;
+            for (e, g) in row.iter().enumerate() {
+                let (mut want, mut size, mut cond, mut weights) = (0.0, 0.0, 0.0, 0.0);
+                for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
+                    let v = if *t == 0.0 { 0.0 } else { z * (-u * x).exp() };
+                    if v.abs() >= PowerSums::TINY {
+                        want += v;
+                        size += v.abs();
+                        cond += v.abs() * u * x / 2.0;
+                        weights += z.abs();
+                    }
+                }
+                let tol = (64.0 * size + cond) * f64::EPSILON + 0.54 * eta * eta * weights + 1e-250;
+                assert!(
+                    (g.re - want).abs() <= tol,
+                    "{digits} lag {l}, entry {e}: {} vs {want} (tolerance {tol:e})",
+                    g.re
+                );
+            }
+        }
+    }
+}
