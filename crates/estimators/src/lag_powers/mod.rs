@@ -316,18 +316,7 @@ impl PowerSums {
             return;
         }
         if !self.runs.is_empty() {
-            self.touched = true;
-            for (sums, offset, stride) in &mut self.runs {
-                let (o, s) = (*offset as f64, *stride as f64);
-                self.stretched.clear();
-                for &(e, z, x) in terms {
-                    let z = if *offset == 0 { z } else { z * exp_neg(x * o) };
-                    if z != Complex64::ZERO {
-                        self.stretched.push((e, z, x * s));
-                    }
-                }
-                sums.add(&self.stretched);
-            }
+            self.add_runs(terms);
             return;
         }
         if let Some((twin, stretch)) = &mut self.twin {
@@ -339,7 +328,72 @@ impl PowerSums {
         }
         self.touched = true;
         let arch = self.arch;
-        arch.dispatch(AddLags { sums: self, terms });
+        arch.dispatch(AddLags {
+            sums: self,
+            terms,
+            bases: None,
+        });
+    }
+
+    /// [`Self::add`] for a sparse grid's runs: to run `r` (offset `o`, step `s`) each term goes
+    /// as `(z exp(-x o), x s)` with its base `exp(-x s)`. Each run's base and offset factor
+    /// follow from the previous run's by products where the steps and offsets are whole
+    /// multiples of the previous step (a multi-tau grid: the base squared, the offset factor
+    /// times the previous run's last power), else by an exponential: one exponential per term
+    /// rather than two per run and term, within the rounding of the products that form powers
+    /// anyway.
+    fn add_runs(&mut self, terms: &[(usize, Complex64, f64)]) {
+        self.touched = true;
+        let n = terms.len();
+        let (mut base, mut factor) = (vec![0.0; n], vec![1.0; n]);
+        let mut last = (0usize, 0usize);
+        let mut bases = Vec::with_capacity(n);
+        for (r, (sums, offset, stride)) in self.runs.iter_mut().enumerate() {
+            let (o, s) = (*offset, *stride);
+            let chained = r > 0 && s % last.1 == 0 && o >= last.0 && (o - last.0) % last.1 == 0;
+            for (i, &(_, _, x)) in terms.iter().enumerate() {
+                if chained {
+                    let step = base[i];
+                    factor[i] *= whole_power(step, (o - last.0) / last.1);
+                    base[i] = whole_power(step, s / last.1);
+                } else {
+                    base[i] = exp_neg(x * s as f64);
+                    factor[i] = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
+                }
+            }
+            last = (o, s);
+            self.stretched.clear();
+            bases.clear();
+            for (i, &(e, z, x)) in terms.iter().enumerate() {
+                let z = z * factor[i];
+                if z != Complex64::ZERO {
+                    self.stretched.push((e, z, x * s as f64));
+                    bases.push(base[i]);
+                }
+            }
+            sums.add_with_bases(&self.stretched, &bases);
+        }
+    }
+
+    /// [`Self::add`] with the terms' bases `r` given (the twin, if any, forms its own).
+    fn add_with_bases(&mut self, terms: &[(usize, Complex64, f64)], bases: &[f64]) {
+        if terms.is_empty() {
+            return;
+        }
+        if let Some((twin, stretch)) = &mut self.twin {
+            self.stretched.clear();
+            let s = *stretch;
+            self.stretched
+                .extend(terms.iter().map(|&(e, z, x)| (e, z, x * s)));
+            twin.add(&self.stretched);
+        }
+        self.touched = true;
+        let arch = self.arch;
+        arch.dispatch(AddLags {
+            sums: self,
+            terms,
+            bases: Some(bases),
+        });
     }
 
     /// [`Self::add`] for terms whose exponent often repeats within an entry (single scattering
@@ -415,6 +469,20 @@ impl PowerSums {
             run.flush_parts(sums, part, buf);
         }
     }
+}
+
+/// `r^n` by repeated squaring (no fused multiply-adds: the same on every instruction set).
+#[inline]
+fn whole_power(r: f64, mut n: usize) -> f64 {
+    let (mut acc, mut sq) = (1.0, r);
+    while n > 0 {
+        if n & 1 == 1 {
+            acc *= sq;
+        }
+        sq *= sq;
+        n >>= 1;
+    }
+    acc
 }
 
 /// The first eight powers `r, r^2, ..., r^8` (products at most three deep).
@@ -497,6 +565,8 @@ fn exp_neg(x: f64) -> f64 {
 struct AddLags<'a> {
     sums: &'a mut PowerSums,
     terms: &'a [(usize, Complex64, f64)],
+    /// The terms' bases when given ([`PowerSums::add_with_bases`]).
+    bases: Option<&'a [f64]>,
 }
 
 impl pulp::WithSimd for AddLags<'_> {
@@ -511,9 +581,13 @@ impl pulp::WithSimd for AddLags<'_> {
     fn with_simd<S: pulp::Simd>(self, simd: S) {
         let t = self.sums;
         t.rs.clear();
-        t.rs.extend(self.terms.iter().map(|term| term.2));
-        for r in &mut t.rs {
-            *r = exp_neg(*r);
+        if let Some(b) = self.bases {
+            t.rs.extend_from_slice(b);
+        } else {
+            t.rs.extend(self.terms.iter().map(|term| term.2));
+            for r in &mut t.rs {
+                *r = exp_neg(*r);
+            }
         }
         let terms = self.terms;
         let mut k = 0;
