@@ -350,7 +350,10 @@ impl PowerSums {
         let mut bases = Vec::with_capacity(n);
         for (r, (sums, offset, stride)) in self.runs.iter_mut().enumerate() {
             let (o, s) = (*offset, *stride);
-            let chained = r > 0 && s % last.1 == 0 && o >= last.0 && (o - last.0) % last.1 == 0;
+            let chained = r > 0
+                && s.is_multiple_of(last.1)
+                && o >= last.0
+                && (o - last.0).is_multiple_of(last.1);
             for (i, &(_, _, x)) in terms.iter().enumerate() {
                 if chained {
                     let step = base[i];
