@@ -3,7 +3,9 @@
 //! (`render_intensity`) and the static covariance (`render_covariance`) of the same pairs (the
 //! target named by the issue: under 2x the static covariance per path), for Brownian motion and
 //! for Brownian motion with drift (the drift connects both copies of every lag at both end
-//! vertices). Fixed seeds; `cargo bench --bench motion`; paths per second.
+//! vertices). Brownian motion also on the same grid written to seven significant digits and on
+//! a multi-tau grid (eight lags per level, the step doubling per level; issue 30, item 4).
+//! Fixed seeds; `cargo bench --bench motion`; paths per second.
 //!
 //! With Gaussian beams (Bar et al. 2020), whose end vertices' Brownian displacements are sampled
 //! and connected at every lag (as drift is), `g1` at 64 lags of a beam source and a beam sensor
@@ -31,6 +33,23 @@ use std::hint::black_box;
 
 fn temporal(c: &mut Criterion) {
     let lags: Vec<f64> = (0..64).map(|l| l as f64 * 0.05).collect();
+    // The same grid written to seven significant digits (`3.174603e-02`, as a file or a
+    // correlator gives it): multiples of one step only to within their rounding.
+    let digits: Vec<f64> = (0..64)
+        .map(|l| format!("{:.6e}", l as f64 * 2.0 / 63.0).parse().unwrap())
+        .collect();
+    // A multi-tau grid: eight lags per level, the step doubling per level (1912 steps).
+    let mut multi_tau = vec![0.0];
+    let (mut m, mut step) = (0.0, 1.0);
+    while multi_tau.len() < 64 {
+        for _ in 0..8 {
+            if multi_tau.len() < 64 {
+                m += step;
+                multi_tau.push(m * 0.002);
+            }
+        }
+        step *= 2.0;
+    }
     for (n_src, n_sens) in [(1, 1), (2, 16)] {
         let s = scene(n_src, n_sens);
         // 32 768 paths: 256 per batch, so that the per-batch work (64 lags of sums to reduce)
@@ -44,21 +63,26 @@ fn temporal(c: &mut Criterion) {
         let id = format!("J={}", s.len());
         let mut g = c.benchmark_group("estimators/temporal/paths");
         g.sample_size(10);
-        let runs: [(&str, Option<Motion>, u64); 4] = [
-            ("static", None, 32_768),
-            ("static_covariance", None, 32_768),
+        let brownian = Motion::brownian(0.01).unwrap();
+        let runs: [(&str, Option<Motion>, u64, &[f64]); 6] = [
+            ("static", None, 32_768, &lags),
+            ("static_covariance", None, 32_768, &lags),
+            ("brownian_64_lags", Some(brownian), 32_768, &lags),
+            ("brownian_64_lags_7_digits", Some(brownian), 32_768, &digits),
             (
-                "brownian_64_lags",
-                Some(Motion::brownian(0.01).unwrap()),
+                "brownian_64_lags_multi_tau",
+                Some(brownian),
                 32_768,
+                &multi_tau,
             ),
             (
                 "drift_64_lags",
                 Some(Motion::new(0.01, DVec3::new(0.2, 0.0, 0.0)).unwrap()),
                 4_096,
+                &lags,
             ),
         ];
-        for (name, motion, paths) in runs {
+        for (name, motion, paths, lags) in runs {
             let o = opts(paths);
             g.throughput(Throughput::Elements(paths));
             match motion {
@@ -76,7 +100,7 @@ fn temporal(c: &mut Criterion) {
                                 render_correlation(
                                     &s,
                                     &model,
-                                    &lags,
+                                    lags,
                                     &Entries::Diagonal,
                                     &o,
                                     &NoProgress,
