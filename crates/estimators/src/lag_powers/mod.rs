@@ -369,7 +369,8 @@ impl PowerSums {
             bases.clear();
             for (i, &(e, z, x)) in terms.iter().enumerate() {
                 let z = z * factor[i];
-                if z != Complex64::ZERO {
+                // A term whose first power in the run is below `TINY` adds nothing there.
+                if z.norm() * base[i] >= PowerSums::TINY {
                     self.stretched.push((e, z, x * s as f64));
                     bases.push(base[i]);
                 }
@@ -790,6 +791,14 @@ pub(crate) struct SlotSums {
     /// Lags rounded to within [`Powers::ROUNDING`]: the sums at the stretched step and the
     /// stretch of the exponents, as [`PowerSums`]'s.
     twin: Option<(Box<SlotSums>, f64)>,
+    /// A sparse grid's runs ([`Powers::runs`]): their sums, offsets and steps, as
+    /// [`PowerSums`]'s (the sums of this one then hold no lags).
+    runs: Vec<(SlotSums, usize, usize)>,
+    /// Whether the bases `r` of the terms are given by the caller (a run's, chained from the
+    /// previous run's) rather than formed from the exponents.
+    given: bool,
+    /// Scratch of a sparse grid: each term's base and offset factor at the current run.
+    chain: Vec<(f64, f64)>,
 }
 
 impl SlotSums {
@@ -805,6 +814,15 @@ impl SlotSums {
     /// lags of `p`.
     pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
         let mut sums = Self::at_step(p, entries, per_entry, p.weights(false));
+        if sums.few.is_none()
+            && let Some(runs) = p.runs()
+        {
+            sums.runs = runs
+                .iter()
+                .map(|(o, s, run)| (Self::new(run, entries, per_entry), *o, *s))
+                .collect();
+            return sums;
+        }
         if p.eta != 0.0 && sums.few.is_none() {
             let twin = Self::at_step(p, entries, per_entry, p.weights(true));
             sums.twin = Some((Box::new(twin), 1.0 + p.eta));
@@ -835,10 +853,13 @@ impl SlotSums {
             least: PowerSums::TINY.powf(1.0 / most as f64) * 1.001,
             touched: false,
             arch: pulp::Arch::new(),
-            few: (entries < Self::FEW || p.runs().is_some()).then(|| PowerSums::new(p, entries)),
+            few: (entries < Self::FEW).then(|| PowerSums::new(p, entries)),
             terms: Vec::new(),
             weights,
             twin: None,
+            runs: Vec::new(),
+            given: false,
+            chain: Vec::new(),
         }
     }
 
@@ -877,6 +898,48 @@ impl SlotSums {
             self.z.fill(0.0);
             return;
         }
+        if !self.runs.is_empty() {
+            // Each run takes the terms `(z exp(-x o), x s)` with their bases `exp(-x s)`,
+            // chained from the previous run's by products where its step divides (as
+            // `PowerSums::add_runs`).
+            self.chain.clear();
+            self.chain.resize(self.z.len(), (0.0, 1.0));
+            let mut last = (0usize, 0usize);
+            for (i, (run, offset, stride)) in self.runs.iter_mut().enumerate() {
+                let (o, s) = (*offset, *stride);
+                let chained = i > 0
+                    && s.is_multiple_of(last.1)
+                    && o >= last.0
+                    && (o - last.0).is_multiple_of(last.1);
+                for (k, c) in self.chain.iter_mut().enumerate() {
+                    let x = self.x[k];
+                    *c = if chained {
+                        let (base, factor) = *c;
+                        (
+                            whole_power(base, s / last.1),
+                            factor * whole_power(base, (o - last.0) / last.1),
+                        )
+                    } else {
+                        let factor = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
+                        (exp_neg(x * s as f64), factor)
+                    };
+                    // A term whose first power in the run is below `TINY` adds nothing there.
+                    let z = self.z[k] * c.1;
+                    run.z[k] = if (z * c.0).abs() < PowerSums::TINY {
+                        0.0
+                    } else {
+                        z
+                    };
+                    run.x[k] = x * s as f64;
+                    run.r[k] = c.0;
+                }
+                last = (o, s);
+                run.given = true;
+                run.add();
+            }
+            self.z.fill(0.0);
+            return;
+        }
         if let Some((twin, stretch)) = &mut self.twin {
             twin.z.copy_from_slice(&self.z);
             for (x, &y) in twin.x.iter_mut().zip(&self.x) {
@@ -902,12 +965,23 @@ impl SlotSums {
         part: impl Fn(usize) -> usize,
         buf: &mut [Complex64],
     ) {
+        self.flush_parts(sums, &part, buf);
+    }
+
+    /// [`Self::flush`] through a reference to `part` (the twin and the runs flush the same
+    /// way).
+    fn flush_parts(
+        &mut self,
+        sums: &mut [BatchSum],
+        part: &dyn Fn(usize) -> usize,
+        buf: &mut [Complex64],
+    ) {
         if !self.touched {
             return;
         }
         self.touched = false;
         if let Some(few) = &mut self.few {
-            few.flush(sums, part, buf);
+            few.flush_parts(sums, part, buf);
             return;
         }
         for (k, &l) in self.lags.iter().enumerate() {
@@ -920,7 +994,10 @@ impl SlotSums {
         }
         self.sums.fill(0.0);
         if let Some((twin, _)) = &mut self.twin {
-            twin.flush(sums, part, buf);
+            twin.flush_parts(sums, part, buf);
+        }
+        for (run, _, _) in &mut self.runs {
+            run.flush_parts(sums, part, buf);
         }
     }
 }
@@ -962,8 +1039,10 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
     fn with_simd<S: pulp::Simd>(self, simd: S) {
         const L: usize = SlotSums::LANES;
         let t = self.sums;
-        for (r, x) in t.r.iter_mut().zip(&t.x) {
-            *r = exp_neg(*x);
+        if !t.given {
+            for (r, x) in t.r.iter_mut().zip(&t.x) {
+                *r = exp_neg(*x);
+            }
         }
         let (n, w) = (t.lags.len(), t.width);
         let last = t.steps.last().copied().unwrap_or(0);
