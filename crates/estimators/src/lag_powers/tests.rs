@@ -1,4 +1,7 @@
+use super::kernels::exp_neg;
 use super::*;
+use num_complex::Complex64;
+use speckle_stats::BatchSum;
 
 #[test]
 fn powers_are_the_exponentials_to_rounding_and_stop_before_subnormals() {
@@ -276,6 +279,69 @@ fn seven_digits() -> Vec<f64> {
         .collect()
 }
 
+/// Checks power sums of two entries at `lags` against `sum z exp(-x |t| / delta)`, to the
+/// rounding of powers (`m + 16` ulps, and the reference's rounding of `m x`) plus the rounding
+/// interpolation's bound `0.54 eta^2` of the terms' weights.
+fn check_power_sums(lags: &[f64], xs: &[f64], eta: f64) {
+    let p = Powers::of(lags).unwrap();
+    let z = Complex64::new(2.0, -1.0);
+    let mut s = PowerSums::new(&p, 2);
+    for &x in xs {
+        s.add(&[(1, z, x)]);
+    }
+    let layout = speckle_stats::Layout::GeneralDiagonal;
+    let mut sums = vec![BatchSum::new(layout, 2, &Default::default()); lags.len()];
+    let mut buf = vec![Complex64::ZERO; 2];
+    s.flush(&mut sums, |l| l, &mut buf);
+    let x_max = xs.iter().copied().fold(0.0, f64::max);
+    for (l, sum) in sums.into_iter().enumerate() {
+        let got = sum.finish()[1];
+        let u = lags[l] / p.delta;
+        let (mut want, mut size, mut weights) = (Complex64::ZERO, 0.0, 0.0);
+        for &x in xs {
+            let v = z * (-u * x).exp();
+            if lags[l] != 0.0 && v.norm() >= PowerSums::TINY {
+                want += v;
+                size += v.norm();
+                weights += z.norm();
+            }
+        }
+        let tol = ((u + 16.0) * 2.0 + u * x_max / 2.0) * f64::EPSILON * size
+            + 0.54 * eta * eta * weights
+            + 1e-250;
+        assert!((got - want).norm() <= tol, "lag {l}: {got} vs {want}");
+    }
+}
+
+/// [`check_power_sums`] for slot sums of `entries` entries.
+fn check_slot_sums(lags: &[f64], entries: usize, eta: f64) {
+    let p = Powers::of(lags).unwrap();
+    let terms = slot_terms(entries, 3);
+    let got = slot_sums(lags, entries, None, &terms);
+    for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
+        let u = t / p.delta;
+        for (e, g) in row.iter().enumerate() {
+            let (mut want, mut size, mut cond, mut weights) = (0.0, 0.0, 0.0, 0.0);
+            for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
+                let v = if *t == 0.0 { 0.0 } else { z * (-u * x).exp() };
+                if v.abs() >= PowerSums::TINY {
+                    want += v;
+                    size += v.abs();
+                    cond += v.abs() * u * x / 2.0;
+                    weights += z.abs();
+                }
+            }
+            let tol =
+                ((u + 16.0) * size + cond) * f64::EPSILON + 0.54 * eta * eta * weights + 1e-250;
+            assert!(
+                (g.re - want).abs() <= tol,
+                "lag {l}, entry {e} of {entries}: {} vs {want} (tolerance {tol:e})",
+                g.re
+            );
+        }
+    }
+}
+
 /// Lags that are multiples of one step only to within their rounding take powers of the step,
 /// and the interpolation between the sums at the step and at the stretched step gives
 /// `sum z exp(-x |t| / delta)` at each lag's own `|t|` to within the powers' rounding and
@@ -288,68 +354,10 @@ fn rounded_lags_are_interpolated_between_two_steps() {
     let p = Powers::of(&lags).unwrap();
     assert!(p.eta != 0.0 && p.eta.abs() < 6e-7, "{}", p.eta);
     assert_eq!(p.order.len(), 64);
-    let xs = [1e-3, 0.02, 0.3, 2.5];
-    let mut s = PowerSums::new(&p, 2);
-    for &x in &xs {
-        s.add(&[(1, Complex64::new(2.0, -1.0), x)]);
-    }
-    let layout = speckle_stats::Layout::GeneralDiagonal;
-    let mut sums = vec![BatchSum::new(layout, 2, &Default::default()); lags.len()];
-    let mut buf = vec![Complex64::ZERO; 2];
-    s.flush(&mut sums, |l| l, &mut buf);
-    for (l, sum) in sums.into_iter().enumerate() {
-        let got = sum.finish()[1];
-        let u = lags[l] / p.delta;
-        let (mut want, mut size, mut weights) = (Complex64::ZERO, 0.0, 0.0);
-        for &x in &xs {
-            let v = Complex64::new(2.0, -1.0) * (-u * x).exp();
-            if lags[l] != 0.0 && v.norm() >= PowerSums::TINY {
-                want += v;
-                size += v.norm();
-                weights += 5f64.sqrt();
-            }
-        }
-        let bound = 0.54 * p.eta * p.eta * weights;
-        let tol = ((u + 16.0) * 2.0 + u * 2.5) * f64::EPSILON * size + bound + 1e-250;
-        assert!((got - want).norm() <= tol, "lag {l}: {got} vs {want}");
-    }
+    check_power_sums(&lags, &[1e-3, 0.02, 0.3, 2.5], p.eta);
     for entries in [11, 2] {
-        let terms = slot_terms(entries, 3);
-        let got = slot_sums(&lags, entries, None, &terms);
-        for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
-            let u = t / p.delta;
-            for (e, g) in row.iter().enumerate() {
-                let (mut want, mut size, mut cond, mut weights) = (0.0, 0.0, 0.0, 0.0);
-                for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
-                    let v = if *t == 0.0 { 0.0 } else { z * (-u * x).exp() };
-                    if v.abs() >= PowerSums::TINY {
-                        want += v;
-                        size += v.abs();
-                        cond += v.abs() * u * x / 2.0;
-                        weights += z.abs();
-                    }
-                }
-                let bound = 0.54 * p.eta * p.eta * weights;
-                let tol = ((u + 16.0) * size + cond) * f64::EPSILON + bound + 1e-250;
-                assert!(
-                    (g.re - want).abs() <= tol,
-                    "lag {l}, entry {e} of {entries}: {} vs {want} (tolerance {tol:e})",
-                    g.re
-                );
-            }
-        }
+        check_slot_sums(&lags, entries, p.eta);
     }
-}
-
-#[test]
-fn a_log_spaced_dcs_grid_takes_powers_of_its_common_step() {
-    let lags = [
-        0.0, 2e-7, 5e-7, 1e-6, 2e-6, 3e-6, 4e-6, 5e-6, 6e-6, 8e-6, 1e-5, 1.5e-5, 2e-5,
-    ];
-    let p = Powers::of(&lags).unwrap();
-    assert!((p.delta - 1e-7).abs() < 1e-20);
-    let steps: Vec<usize> = p.order.iter().map(|&(_, m)| m).collect();
-    assert_eq!(steps, [2, 5, 10, 20, 30, 40, 50, 60, 80, 100, 150, 200]);
 }
 
 /// A multi-tau grid: eight lags per level, the step doubling per level, 63 non-zero lags up
@@ -376,8 +384,9 @@ fn multi_tau(digits: bool) -> Vec<f64> {
 
 /// A multi-tau grid is split into runs of equally spaced steps, one per level
 /// ([`Powers::runs`]), and the sums are `sum z exp(-x |t| / delta)` at every lag to the
-/// rounding of powers (`m + 16` ulps: the runs' bases are chained by squaring) (plus, for rounded lags, the interpolation's bound `0.54 eta^2` of the weights, `eta` the
-/// largest rounding within a run): power sums and slot sums (eleven entries).
+/// rounding of powers (`m + 16` ulps: the runs' bases are chained by squaring), plus, for
+/// rounded lags, the interpolation's bound `0.54 eta^2` of the weights (`eta` the largest
+/// rounding within a run): power sums and slot sums (eleven entries).
 #[test]
 fn multi_tau_lags_take_runs_of_their_own_steps() {
     for digits in [false, true] {
@@ -387,58 +396,7 @@ fn multi_tau_lags_take_runs_of_their_own_steps() {
         assert_eq!(runs.len(), 8, "one run per level");
         let eta = runs.iter().map(|r| r.2.eta.abs()).fold(0.0, f64::max);
         assert!(digits == (eta > 0.0) && eta < 1e-5, "{eta}");
-        let xs = [1e-4, 3e-3, 0.05, 0.9];
-        let mut s = PowerSums::new(&p, 2);
-        for &x in &xs {
-            s.add(&[(1, Complex64::new(2.0, -1.0), x)]);
-        }
-        let layout = speckle_stats::Layout::GeneralDiagonal;
-        let mut sums = vec![BatchSum::new(layout, 2, &Default::default()); lags.len()];
-        let mut buf = vec![Complex64::ZERO; 2];
-        s.flush(&mut sums, |l| l, &mut buf);
-        for (l, sum) in sums.into_iter().enumerate() {
-            let got = sum.finish()[1];
-            let u = lags[l] / p.delta;
-            let (mut want, mut size, mut weights) = (Complex64::ZERO, 0.0, 0.0);
-            for &x in &xs {
-                let v = Complex64::new(2.0, -1.0) * (-u * x).exp();
-                if lags[l] != 0.0 && v.norm() >= PowerSums::TINY {
-                    want += v;
-                    size += v.norm();
-                    weights += 5f64.sqrt();
-                }
-            }
-            let tol = ((u + 16.0) * 2.0 + u * 0.45) * f64::EPSILON * size
-                + 0.54 * eta * eta * weights
-                + 1e-250;
-            assert!(
-                (got - want).norm() <= tol,
-                "{digits} lag {l}: {got} vs {want}"
-            );
-        }
-        let terms = slot_terms(11, 3);
-        let got = slot_sums(&lags, 11, None, &terms);
-        for (l, (t, row)) in lags.iter().zip(&got).enumerate() {
-            let u = t / p.delta;
-            for (e, g) in row.iter().enumerate() {
-                let (mut want, mut size, mut cond, mut weights) = (0.0, 0.0, 0.0, 0.0);
-                for &(_, _, z, x) in terms.iter().flatten().filter(|t| t.0 == e) {
-                    let v = if *t == 0.0 { 0.0 } else { z * (-u * x).exp() };
-                    if v.abs() >= PowerSums::TINY {
-                        want += v;
-                        size += v.abs();
-                        cond += v.abs() * u * x / 2.0;
-                        weights += z.abs();
-                    }
-                }
-                let tol =
-                    ((u + 16.0) * size + cond) * f64::EPSILON + 0.54 * eta * eta * weights + 1e-250;
-                assert!(
-                    (g.re - want).abs() <= tol,
-                    "{digits} lag {l}, entry {e}: {} vs {want} (tolerance {tol:e})",
-                    g.re
-                );
-            }
-        }
+        check_power_sums(&lags, &[1e-4, 3e-3, 0.05, 0.9], eta);
+        check_slot_sums(&lags, 11, eta);
     }
 }
