@@ -106,3 +106,30 @@ pub(super) fn scale_add<S: pulp::Simd>(simd: S, s: &mut [f64], p: &[f64], a: f64
         *s += a * p;
     }
 }
+
+/// A term's base `exp(-x s)` and offset factor `exp(-x o)` at a run of offset `o` and step `s`
+/// (`run`), from its `state` at the previous run (`prev`, `None` for the first): by products
+/// where the previous step divides the step and the change of offset (a multi-tau grid: the
+/// base squared, the factor times the previous run's last power), else by exponentials.
+#[inline]
+pub(super) fn next_run(
+    prev: Option<(usize, usize)>,
+    run: (usize, usize),
+    x: f64,
+    state: (f64, f64),
+) -> (f64, f64) {
+    let (o, s) = run;
+    match prev {
+        Some((po, ps)) if s.is_multiple_of(ps) && o >= po && (o - po).is_multiple_of(ps) => {
+            let (base, factor) = state;
+            (
+                whole_power(base, s / ps),
+                factor * whole_power(base, (o - po) / ps),
+            )
+        }
+        _ => {
+            let factor = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
+            (exp_neg(x * s as f64), factor)
+        }
+    }
+}

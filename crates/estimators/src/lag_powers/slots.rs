@@ -1,7 +1,7 @@
 //! [`SlotSums`]: real sums of `z r^(m_l)` with one vector lane per entry.
 
 use super::Powers;
-use super::kernels::{exp_neg, whole_power};
+use super::kernels::{exp_neg, next_run};
 use super::sums::PowerSums;
 use num_complex::Complex64;
 use speckle_stats::BatchSum;
@@ -169,25 +169,12 @@ impl SlotSums {
             // `PowerSums::add_runs`).
             self.chain.clear();
             self.chain.resize(self.z.len(), (0.0, 1.0));
-            let mut last = (0usize, 0usize);
-            for (i, (run, offset, stride)) in self.runs.iter_mut().enumerate() {
-                let (o, s) = (*offset, *stride);
-                let chained = i > 0
-                    && s.is_multiple_of(last.1)
-                    && o >= last.0
-                    && (o - last.0).is_multiple_of(last.1);
+            let mut prev = None;
+            for (run, offset, stride) in &mut self.runs {
+                let step = (*offset, *stride);
                 for (k, c) in self.chain.iter_mut().enumerate() {
                     let x = self.x[k];
-                    *c = if chained {
-                        let (base, factor) = *c;
-                        (
-                            whole_power(base, s / last.1),
-                            factor * whole_power(base, (o - last.0) / last.1),
-                        )
-                    } else {
-                        let factor = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
-                        (exp_neg(x * s as f64), factor)
-                    };
+                    *c = next_run(prev, step, x, *c);
                     // A term whose first power in the run is below `TINY` adds nothing there.
                     let z = self.z[k] * c.1;
                     run.z[k] = if (z * c.0).abs() < PowerSums::TINY {
@@ -195,10 +182,10 @@ impl SlotSums {
                     } else {
                         z
                     };
-                    run.x[k] = x * s as f64;
+                    run.x[k] = x * step.1 as f64;
                     run.r[k] = c.0;
                 }
-                last = (o, s);
+                prev = Some(step);
                 run.given = true;
                 run.add();
             }

@@ -1,7 +1,7 @@
 //! [`PowerSums`]: sums of `z r^(m_l)` per entry and lag, one term at a time.
 
 use super::Powers;
-use super::kernels::{exp_neg, first_eight, multipliers, scale_add, whole_power};
+use super::kernels::{exp_neg, first_eight, multipliers, next_run, scale_add};
 use num_complex::Complex64;
 use speckle_stats::BatchSum;
 
@@ -55,6 +55,10 @@ pub(crate) struct PowerSums {
     /// A sparse grid's runs ([`Powers::runs`]): their sums, offsets and steps (the sums of
     /// this one then hold no lags).
     runs: Vec<(PowerSums, usize, usize)>,
+    /// Scratch of a sparse grid: each term's base and offset factor at the current run, and
+    /// the bases of the terms a run takes.
+    chain: Vec<(f64, f64)>,
+    bases: Vec<f64>,
 }
 
 impl PowerSums {
@@ -122,6 +126,8 @@ impl PowerSums {
             twin: None,
             stretched: Vec::new(),
             runs: Vec::new(),
+            chain: Vec::new(),
+            bases: Vec::new(),
         }
     }
 
@@ -147,38 +153,24 @@ impl PowerSums {
     /// anyway.
     fn add_runs(&mut self, terms: &[(usize, Complex64, f64)]) {
         self.touched = true;
-        let n = terms.len();
-        let (mut base, mut factor) = (vec![0.0; n], vec![1.0; n]);
-        let mut last = (0usize, 0usize);
-        let mut bases = Vec::with_capacity(n);
-        for (r, (sums, offset, stride)) in self.runs.iter_mut().enumerate() {
-            let (o, s) = (*offset, *stride);
-            let chained = r > 0
-                && s.is_multiple_of(last.1)
-                && o >= last.0
-                && (o - last.0).is_multiple_of(last.1);
-            for (i, &(_, _, x)) in terms.iter().enumerate() {
-                if chained {
-                    let step = base[i];
-                    factor[i] *= whole_power(step, (o - last.0) / last.1);
-                    base[i] = whole_power(step, s / last.1);
-                } else {
-                    base[i] = exp_neg(x * s as f64);
-                    factor[i] = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
-                }
-            }
-            last = (o, s);
+        self.chain.clear();
+        self.chain.resize(terms.len(), (0.0, 1.0));
+        let mut prev = None;
+        for (sums, offset, stride) in &mut self.runs {
+            let run = (*offset, *stride);
             self.stretched.clear();
-            bases.clear();
-            for (i, &(e, z, x)) in terms.iter().enumerate() {
-                let z = z * factor[i];
+            self.bases.clear();
+            for (c, &(e, z, x)) in self.chain.iter_mut().zip(terms) {
+                *c = next_run(prev, run, x, *c);
+                let z = z * c.1;
                 // A term whose first power in the run is below `TINY` adds nothing there.
-                if z.norm() * base[i] >= PowerSums::TINY {
-                    self.stretched.push((e, z, x * s as f64));
-                    bases.push(base[i]);
+                if z.norm() * c.0 >= PowerSums::TINY {
+                    self.stretched.push((e, z, x * run.1 as f64));
+                    self.bases.push(c.0);
                 }
             }
-            sums.add_with_bases(&self.stretched, Some(&bases));
+            prev = Some(run);
+            sums.add_with_bases(&self.stretched, Some(&self.bases));
         }
     }
 
