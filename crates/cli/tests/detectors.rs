@@ -47,24 +47,29 @@ fn scene(detector: &str, medium: &str) -> String {
         .replace("{medium}", medium)
 }
 
+/// A point detector (no radius): the fluence at the point.
+const POINT: &str = "position = [0.1, 0.0, 0.0]\nweighting = \"fluence\"";
+
 #[test]
 fn g1_and_intensity_render_detectors_and_agree_at_lag_zero() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = write(dir.path(), "f.toml", &scene(FIBRE, ""));
-    let s = s.to_str().unwrap();
-    let o = speckle(dir.path(), &["g1", s, "--out", "out", "-q"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = speckle(dir.path(), &["intensity", s, "--out", "out", "-q"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = dir.path().join("out");
-    let c = npy_f64(&out.join("f.correlation.npy"));
-    let i = npy_f64(&out.join("f.intensity.npy"));
-    let g = npy_f64(&out.join("f.g1.npy"));
-    // Complex arrays read as (re, im) pairs.
-    assert_eq!(c[0], i[0], "C(0) is the reading");
-    assert!(i[0] > 0.0);
-    assert_eq!((g[0], g[1]), (1.0, 0.0));
-    assert!(g[2] < 1.0 && g[4] < g[2] && g[4] > 0.0, "{g:?}");
+    for detector in [FIBRE, POINT] {
+        let dir = tempfile::tempdir().unwrap();
+        let s = write(dir.path(), "f.toml", &scene(detector, ""));
+        let s = s.to_str().unwrap();
+        let o = speckle(dir.path(), &["g1", s, "--out", "out", "-q"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let o = speckle(dir.path(), &["intensity", s, "--out", "out", "-q"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = dir.path().join("out");
+        let c = npy_f64(&out.join("f.correlation.npy"));
+        let i = npy_f64(&out.join("f.intensity.npy"));
+        let g = npy_f64(&out.join("f.g1.npy"));
+        // Complex arrays read as (re, im) pairs.
+        assert_eq!(c[0], i[0], "{detector}: C(0) is the reading");
+        assert!(i[0] > 0.0);
+        assert_eq!((g[0], g[1]), (1.0, 0.0));
+        assert!(g[2] < 1.0 && g[4] < g[2] && g[4] > 0.0, "{detector}: {g:?}");
+    }
 }
 
 #[test]
@@ -100,6 +105,16 @@ fn bad_detectors_exit_2_naming_the_field() {
             "position = [0.1, 0.0, 0.0]\nradius = 0.0",
             "",
             "sensors[0].radius",
+        ),
+        (
+            "position = [0.1, 0.0, 0.2]\nweighting = \"fluence\"",
+            "",
+            "sensors[0].position",
+        ),
+        (
+            "position = [0.1, 0.0, 0.0]\nnumerical_aperture = 1.5",
+            "",
+            "sensors[0].numerical_aperture",
         ),
         (
             "position = [0.1, 0.0, 0.0]\nradius = -0.1",

@@ -24,6 +24,13 @@
 //!
 //! The acceptance half-angle is `theta_max = asin(NA / n_out)`, measured outside the face, where
 //! the index `n_out` is the host's (the boundary is index-matched: no refraction).
+//!
+//! A *point* detector ([`Detector::point`]) is the limit of a vanishing radius: the irradiance
+//! (flux) or the fluence at one point of the face, `int L(y, w) (w . n) dw` or `int L(y, w)
+//! dw` over the aperture. With the fluence weighting and the full aperture it reads what a
+//! point sensor (a field endpoint) on the face reads, `E |u|^2` (forward paths; the coherent
+//! backscattering term of a point source and a point sensor apart averages out), with an
+//! estimator whose variance stays bounded.
 
 use crate::{EndpointError, check};
 use glam::DVec3;
@@ -76,6 +83,70 @@ impl Detector {
         outside_index: f64,
         weighting: Weighting,
     ) -> Result<Self, EndpointError> {
+        // At least 1e-150: the reading divides by the area pi r^2, which underflows to 0
+        // (a NaN reading) below about 1e-154 (a fuzz finding, issue 27).
+        if !(radius.is_finite() && radius >= 1e-150) {
+            return Err(check::invalid(
+                format!("{field}.radius"),
+                format!(
+                    "must be finite and at least 1e-150 (got {radius:e}); leave it out for a \
+                     point detector"
+                ),
+            ));
+        }
+        Self::build(
+            field,
+            medium,
+            center,
+            radius,
+            numerical_aperture,
+            axis,
+            outside_index,
+            weighting,
+        )
+    }
+
+    /// A *point* detector at `center` on a face of `medium`'s box: the limit of
+    /// [`Detector::new`] as the radius goes to zero, the irradiance ([`Weighting::Flux`]) or the
+    /// fluence ([`Weighting::Fluence`]) at that point of the face from the light leaving within
+    /// the aperture. No path leaves through a point: its estimators connect vertices to it
+    /// (next-event estimation and branches, `speckle_estimators::render_detectors`). Its
+    /// [`Detector::radius`] and [`Detector::area`] are 0, and [`Detector::read`] is 0
+    /// everywhere. Errors name `field` and its keys.
+    #[allow(clippy::too_many_arguments)]
+    pub fn point<M: Medium>(
+        field: &str,
+        medium: &M,
+        center: DVec3,
+        numerical_aperture: f64,
+        axis: Option<DVec3>,
+        outside_index: f64,
+        weighting: Weighting,
+    ) -> Result<Self, EndpointError> {
+        Self::build(
+            field,
+            medium,
+            center,
+            0.0,
+            numerical_aperture,
+            axis,
+            outside_index,
+            weighting,
+        )
+    }
+
+    /// [`Detector::new`] and [`Detector::point`] after the radius is checked.
+    #[allow(clippy::too_many_arguments)]
+    fn build<M: Medium>(
+        field: &str,
+        medium: &M,
+        center: DVec3,
+        radius: f64,
+        numerical_aperture: f64,
+        axis: Option<DVec3>,
+        outside_index: f64,
+        weighting: Weighting,
+    ) -> Result<Self, EndpointError> {
         if medium.dimension() != Dimension::Three {
             return Err(check::invalid(
                 field,
@@ -86,14 +157,6 @@ impl Detector {
             return Err(check::invalid(
                 format!("{field}.position"),
                 format!("must be finite (got {center})"),
-            ));
-        }
-        // At least 1e-150: the reading divides by the area pi r^2, which underflows to 0
-        // (a NaN reading) below about 1e-154 (a fuzz finding, issue 27).
-        if !(radius.is_finite() && radius >= 1e-150) {
-            return Err(check::invalid(
-                format!("{field}.radius"),
-                format!("must be finite and at least 1e-150 (got {radius:e})"),
             ));
         }
         if !(outside_index.is_finite() && outside_index >= 1.0) {
@@ -335,12 +398,35 @@ impl Detector {
         if off.dot(self.normal).abs() > self.tol {
             return 0.0;
         }
-        if off.length_squared() > self.radius * self.radius {
+        if self.is_point() || off.length_squared() > self.radius * self.radius {
             return 0.0;
         }
         match self.weighting {
             Weighting::Flux => 1.0 / self.area(),
             Weighting::Fluence => 1.0 / (self.area() * cos_n),
+        }
+    }
+
+    /// Whether this is a point detector ([`Detector::point`]).
+    #[inline]
+    pub fn is_point(&self) -> bool {
+        self.radius == 0.0
+    }
+
+    /// A point detector's weight of light leaving the medium at its point along the unit `dir`
+    /// (per unit of the solid angle it arrives in, seen from the point): 0 outside the
+    /// aperture, else `dir . n` (flux: the irradiance) or 1 (fluence), so that a vertex at `r`
+    /// whose light reaches the point with radiance `L` adds `L` times this over `r^2`. For a
+    /// disc it is `read` times the area times `dir . n` at the centre, whatever the radius.
+    #[inline]
+    pub fn read_point(&self, dir: DVec3) -> f64 {
+        let cos_n = dir.dot(self.normal);
+        if cos_n <= 0.0 || dir.dot(self.axis) < self.cos_max {
+            return 0.0;
+        }
+        match self.weighting {
+            Weighting::Flux => cos_n,
+            Weighting::Fluence => 1.0,
         }
     }
 }
@@ -437,6 +523,44 @@ mod tests {
         }
         assert!((d.distance_bound(DVec3::new(0.25, 0.0, 0.3)) - 0.3).abs() < 1e-15);
         assert!((d.distance_bound(DVec3::new(0.4, 0.0, 0.0)) - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_point_detector_is_the_limit_of_a_disc() {
+        let c = DVec3::new(0.25, 0.0, 0.0);
+        let p = Detector::point("s", &cube(), c, 0.5, None, 1.0, Weighting::Flux).unwrap();
+        assert!(p.is_point() && p.area() == 0.0 && p.radius() == 0.0);
+        assert_eq!(p.normal(), -DVec3::Z);
+        // No exit reads it, even at its point.
+        assert_eq!(p.read(c, -DVec3::Z), 0.0);
+        assert_eq!(p.sample_point([0.3, 0.7]), c);
+        // Its weight per solid angle is a small disc's reading times its area and the cosine.
+        let d = det(c, 1e-3, 0.5, None).unwrap();
+        let w = DVec3::new(0.3, 0.0, -0.9).normalize();
+        let disc = d.read(c, w) * d.area() * w.dot(d.normal());
+        assert!((p.read_point(w) - disc).abs() < 1e-12, "{disc}");
+        // Outside the aperture (30 degrees) or inwards: nothing.
+        assert_eq!(p.read_point(DVec3::new(0.6, 0.0, -0.8)), 0.0);
+        assert_eq!(p.read_point(DVec3::Z), 0.0);
+        let f = Detector::point("s", &cube(), c, 1.0, None, 1.0, Weighting::Fluence).unwrap();
+        assert_eq!(f.read_point(DVec3::new(0.6, 0.0, -0.8)), 1.0);
+        // The same checks as a disc's, naming the field.
+        let e = Detector::point(
+            "s",
+            &cube(),
+            DVec3::new(0.25, 0.0, 0.3),
+            0.5,
+            None,
+            1.0,
+            Weighting::Flux,
+        );
+        assert!(e.unwrap_err().to_string().starts_with("s.position"));
+        let e = Detector::point("s", &cube(), c, 1.5, None, 1.0, Weighting::Flux);
+        assert!(
+            e.unwrap_err()
+                .to_string()
+                .starts_with("s.numerical_aperture")
+        );
     }
 
     #[test]

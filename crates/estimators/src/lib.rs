@@ -62,8 +62,8 @@ pub use covariance::{
     render_intensity_with, render_single_scattering, shard_spec,
 };
 pub use detector::{
-    DetectorEstimate, DetectorTechniques, MAX_RECORD_BYTES, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY,
-    PILOT_PATHS, PILOT_VERTICES, detector_readings, detector_shard_spec,
+    DetectorEstimate, DetectorTechniques, MAX_RECORD_BYTES, NEAR_GAIN, NEXT_EVENT_DEPTH,
+    NEXT_EVENT_KEY, PILOT_PATHS, PILOT_VERTICES, detector_readings, detector_shard_spec,
     detector_vertices_per_path, render_detector_records, render_detectors, render_detectors_shard,
     render_detectors_with,
 };

@@ -391,8 +391,11 @@ pub enum SensorSpec {
     Detector {
         /// The centre of the disc, on a face of the medium's box.
         position: [f64; 3],
-        /// The radius of the disc (> 0; the disc must lie on the face).
-        radius: f64,
+        /// The radius of the disc (> 0; the disc must lie on the face). Absent: a *point*
+        /// detector, the irradiance (flux) or fluence at `position` (the disc's limit; with
+        /// `weighting = "fluence"` what a point sensor there reads, with bounded variance).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius: Option<f64>,
         /// The numerical aperture `n sin(theta_max)` in `(0, n]`, `n` the index outside (the
         /// host's: the boundary is index-matched); `n`, every direction, when absent.
         #[serde(default, skip_serializing_if = "Option::is_none")]

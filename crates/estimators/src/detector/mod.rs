@@ -37,6 +37,13 @@
 //! by `(rho cos / r^2) / (rho cos / r^2 + 1/|A|)` (the balance heuristic; the transmittances are
 //! common to both techniques and left out of the weights, which sum to 1 at every point).
 //!
+//! A *point* detector ([`speckle_endpoints::Detector::point`]) is read by connections alone (no
+//! path leaves through a point): from every vertex, including `x1` (single scattering), and by
+//! *branches*, a last vertex sampled around the point from every vertex near it, the two
+//! weighed by the balance heuristic so that the connections' `1 / r^2` next to the point keeps
+//! a bounded variance (the estimator and its weights: `points.rs`); the weight window adds a
+//! near term towards it ([`NEAR_GAIN`]).
+//!
 //! Forward paths only: a detector integrates many speckle grains, over which the coherent
 //! backscattering cross term of a path and its reverse averages out (its cone is about
 //! `lambda / l*` wide); the reading is the incoherent sum.
@@ -51,13 +58,14 @@ use speckle_stats::{MomentsSpec, Progress, Shard};
 
 mod estimate;
 mod pilot;
+mod points;
 mod render;
 mod techniques;
 
 pub use estimate::DetectorEstimate;
 pub use pilot::{PILOT_PATHS, PILOT_VERTICES, detector_vertices_per_path};
 pub use render::MAX_RECORD_BYTES;
-pub use techniques::{DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY};
+pub use techniques::{DetectorTechniques, NEAR_GAIN, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY};
 
 /// Renders every (source, detector) pair of a detector scene ([`Scene::with_detectors`]) with
 /// `opts.paths` paths: the readings and, with `motion`, their temporal correlations `C(t)` at

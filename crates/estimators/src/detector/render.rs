@@ -2,6 +2,7 @@
 //! connections with the detectors, and the batched render over all paths.
 
 use super::estimate::DetectorEstimate;
+use super::points::{self, PointBranch};
 use super::techniques::{
     DetectorTechniques, NEXT_EVENT_DEPTH, NEXT_EVENT_KEY, emissions, trace_path, windows,
 };
@@ -33,10 +34,12 @@ struct PathState {
     first: Motion,
     material1: usize,
     w1: DVec3,
-    /// The current vertex, its motion and material, and the direction it was reached along.
+    /// The current vertex, its motion, material and particle type, and the direction it was
+    /// reached along.
     x: DVec3,
     here: Motion,
     material: usize,
+    ty: usize,
     w_in: DVec3,
     /// `sum D |q|^2` and `sum q . U` over the interior vertices so far, and the first sum per
     /// material.
@@ -63,8 +66,13 @@ struct Sink<'a, M: Medium, P> {
     share: f64,
     /// The stream of the next-event connections.
     rng: PathRng,
-    /// Where the path is (saved and restored for the copies of a split path).
+    /// Where the path is (saved and restored for the copies of a split path), and a copy kept
+    /// while a branch to a point detector is registered.
     path: PathState,
+    branch_saved: PathState,
+    /// The point detectors, by index, with their branch samplers (`None` where the medium
+    /// next to the point does not attenuate: connections alone).
+    points: &'a [(usize, Option<PointBranch>)],
     /// The path's values, `J x L` correlations then `J x M` decay sums (see
     /// [`DetectorEstimate::decay`]), whether it registered, and whether by single scattering.
     values: Vec<Complex64>,
@@ -179,6 +187,116 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         }
     }
 
+    /// The path has reached its vertex number `index >= 2` at `x` along `w_in`, having left
+    /// the previous vertex along `w_prev_out` (`w12` from `x1`), with particle type `ty`:
+    /// the previous vertex becomes interior.
+    fn advance(
+        &mut self,
+        index: u32,
+        x: DVec3,
+        w_in: DVec3,
+        w_prev_out: DVec3,
+        w12: DVec3,
+        ty: usize,
+    ) {
+        if index > 2 {
+            // x_{b-1} is now interior: it turned the path from w_in into the direction it
+            // scattered into (the new w_in, unless a face reflected the flight).
+            let q = w_prev_out - self.path.w_in;
+            let y = self.path.here.diffusion * q.length_squared();
+            self.path.y += y;
+            self.path.y_material[self.path.material] += y;
+            self.path.q += q.dot(self.path.here.drift);
+            self.add_transfer(self.path.material, q);
+        } else {
+            self.path.w1 = w12;
+        }
+        self.path.x = x;
+        self.path.here = self.motion_at(x);
+        self.path.material = self.scene.medium().material(x);
+        self.path.ty = ty;
+        self.path.w_in = w_in;
+    }
+
+    /// The current vertex, the direction it was reached along (at `x1` the light's arrival)
+    /// and its particle type: what the density of a flight from it depends on.
+    #[inline]
+    fn from(&self) -> (DVec3, DVec3, usize) {
+        let w_in = if self.path.w_in == DVec3::ZERO {
+            self.path.arrival
+        } else {
+            self.path.w_in
+        };
+        (self.path.x, w_in, self.path.ty)
+    }
+
+    /// The current vertex (number `index`, path weight `weight`, flights of `length` from
+    /// `x1`) connects to every point detector and branches to it (see [`super::points`]);
+    /// `from` is the vertex the flight to it straight from (`None` at `x1` or after a
+    /// reflection: no branch samples the vertex, and its connection keeps the weight 1).
+    fn connect_points(
+        &mut self,
+        index: u32,
+        weight: f64,
+        length: f64,
+        from: Option<(DVec3, DVec3, usize)>,
+    ) {
+        let scene = self.scene;
+        let (m, interface) = (scene.medium(), scene.interface());
+        let (x, w_in, ty) = self.from();
+        let rho = &scene.phases()[ty];
+        for &(d, branch) in self.points {
+            let det = &scene.detectors()[d];
+            // The connection from here, weighed against the branch from the previous vertex.
+            let p = points::connection_probability(m, det, x);
+            if (p >= 1.0 || self.rng.next_f64() < p)
+                && let Some((n, w, r)) = points::connect(m, interface, rho, det, x, w_in)
+            {
+                let mis = match (from, &branch) {
+                    (Some((xp, wp, tp)), Some(branch)) => {
+                        let b = branch.probability(xp) * branch.pdf(x);
+                        let a = points::flight_density(m, &scene.phases()[tp], xp, wp, x);
+                        if b > 0.0 { a / (a + b) } else { 1.0 }
+                    }
+                    _ => 1.0,
+                };
+                let w_reg = weight * n * mis / p;
+                self.register(d, w, w_reg, index == 1, (index, length + r));
+            }
+            // A branch from here: a last vertex y around the point.
+            let Some(branch) = branch else {
+                continue;
+            };
+            let pb = branch.probability(x);
+            if pb < 1.0 && self.rng.next_f64() >= pb {
+                continue;
+            }
+            let y = branch.sample(self.rng.next_3());
+            if !m.contains(y) {
+                continue;
+            }
+            let a = points::flight_density(m, rho, x, w_in, y);
+            if !(a > 0.0 && a.is_finite()) {
+                continue;
+            }
+            let ty_y = m.sample_type(y, self.rng.next_f64());
+            let to = y - x;
+            let dist = to.length();
+            let w_xy = to / dist;
+            let Some((n, w, r)) =
+                points::connect(m, interface, &scene.phases()[ty_y], det, y, w_xy)
+            else {
+                continue;
+            };
+            let b = pb * branch.pdf(y);
+            let w_reg = weight * a * n / (a + b);
+            self.branch_saved.clone_from(&self.path);
+            self.advance(index + 1, y, w_xy, w_xy, w_xy, ty_y);
+            self.register(d, w, w_reg, false, (index + 1, length + dist + r));
+            std::mem::swap(&mut self.path, &mut self.branch_saved);
+        }
+    }
+
     /// Adds the transfer `q` at a vertex of material `m` to the path's recorded sums.
     fn add_transfer(&mut self, m: usize, q: DVec3) {
         if self.record {
@@ -209,43 +327,39 @@ impl<M: Medium, P: PhaseFunction> VertexSink for Sink<'_, M, P> {
         self.path.first_length = length;
     }
 
-    fn first(&mut self, x1: DVec3, _ty: usize, _weight: f64, _rng: &mut PathRng) {
+    fn first(&mut self, x1: DVec3, ty: usize, weight: f64, _rng: &mut PathRng) {
         self.path.first = self.motion_at(x1);
         self.path.material1 = self.scene.medium().material(x1);
         self.path.w1 = DVec3::ZERO;
         self.path.x = x1;
         self.path.here = self.path.first;
         self.path.material = self.path.material1;
+        self.path.ty = ty;
         self.path.w_in = DVec3::ZERO;
         self.path.y = 0.0;
         self.path.q = 0.0;
         self.path.y_material.fill(0.0);
         self.path.transfers.fill(0.0);
+        // Single scattering reaches a point detector only by a connection from x1.
+        if self.next_event && !self.points.is_empty() {
+            self.connect_points(1, weight, 0.0, None);
+        }
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
-        if v.index > 2 {
-            // x_{b-1} is now interior: it turned the path from w_in into the direction it
-            // scattered into (v.w_in, unless a face reflected the flight).
-            let q = v.w_prev_out - self.path.w_in;
-            let y = self.path.here.diffusion * q.length_squared();
-            self.path.y += y;
-            self.path.y_material[self.path.material] += y;
-            self.path.q += q.dot(self.path.here.drift);
-            self.add_transfer(self.path.material, q);
-        } else {
-            self.path.w1 = v.w12;
+        // The vertex the path came from, for the weights of point detectors' connections.
+        let from = self.from();
+        self.advance(v.index, v.x, v.w_in, v.w_prev_out, v.w12, v.ty);
+        if self.next_event && !self.points.is_empty() {
+            let straight = v.w_prev_out == v.w_in;
+            self.connect_points(v.index, v.weight, v.length, straight.then_some(from));
         }
-        self.path.x = v.x;
-        self.path.here = self.motion_at(v.x);
-        self.path.material = self.scene.medium().material(v.x);
-        self.path.w_in = v.w_in;
         // Next-event connections to a point of each disc, weighed against the exit estimator
         // by the balance heuristic of the two densities of the exit point on the disc: `1 / |A|`
         // and the phase function's `rho(w_in -> w) cos / r^2`.
         let scene = self.scene;
         for (d, det) in scene.detectors().iter().enumerate() {
-            if !self.connects(det) {
+            if det.is_point() || !self.connects(det) {
                 continue;
             }
             let y = det.sample_point(self.rng.next_2());
@@ -372,6 +486,16 @@ where
             format!("at least 2 paths are needed (got {})", opts.paths),
         ));
     }
+    if techniques == DetectorTechniques::Exit
+        && let Some(i) = scene.detectors().iter().position(|d| d.is_point())
+    {
+        return Err(invalid(
+            &format!("sensors[{i}]"),
+            "a point detector is read by connections, which the exit technique alone does not \
+             make"
+                .into(),
+        ));
+    }
     let (model, lags): (Option<&MotionModel>, Vec<f64>) = match motion {
         Some((m, lags)) => {
             speckle_motion::check_lags("motion.lags", lags)
@@ -392,8 +516,17 @@ where
     let nm = scene.medium().materials();
     let record = keep.is_some();
     let keep = keep.unwrap_or_default();
+    let point_detectors: Vec<(usize, Option<PointBranch>)> = scene
+        .detectors()
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.is_point())
+        .map(|(i, d)| (i, PointBranch::new(d, scene.medium())))
+        .collect();
     let init = || Sink {
         scene,
+        points: &point_detectors,
+        branch_saved: PathState::default(),
         motion: model,
         lags: &lags,
         k,

@@ -25,7 +25,9 @@ pub enum DetectorTechniques {
     /// reflectance at disc `d` from an isotropic source at `x` (Farrell et al. 1992; the
     /// formula in docs/conventions.md), with the diffusion attenuation `kappa = sqrt(3 mu_a
     /// (mu_a + mu_s (1 - g)))` at the source (each detector's term 1 at the source: every
-    /// detector draws copies in proportion to how much farther it is). The default.
+    /// detector draws copies in proportion to how much farther it is); a point detector adds
+    /// a near term that grows as `1 / r^2` within a transport length of it ([`NEAR_GAIN`]).
+    /// The default.
     #[default]
     ExitNextEventAndSplitting,
 }
@@ -46,6 +48,16 @@ pub const NEXT_EVENT_KEY: u64 = 0x0064_6574_6563; // "detec"
 pub(super) const MAX_SPLIT: u32 = 8;
 /// Most particles (a path and its copies) of one path.
 pub(super) const MAX_PARTICLES: u32 = 1024;
+
+/// The weight of a point detector's near term in the splitting importance, `NEAR_GAIN e^{-r /
+/// l*} / r^2` (`r` the distance to the point, `l*` the transport length) beside the dipole's
+/// reflectance (`4 pi R`, in which the fluence of the same source at the face is about `e^{-r /
+/// l*} / (2 r^2)` within a transport length). Measured on the tissue cube (`mu_s = 100 /cm`, `g =
+/// 0.9`, a point detector 5 mm from the source, 400 000 paths, seeds 1-4): gains 1, 4, 16 and 64
+/// gave relative errors of 4.9%, 2.7%, 1.6% and 1.6% in 3.0, 4.1, 7.8 and 23 s, so efficiencies
+/// (`1 / (error^2 time)`) of 140, 335, 500 and 170; the point needs more copies near it than its
+/// expected reading alone asks for, since its connections' variance grows as they near it.
+pub const NEAR_GAIN: f64 = 16.0;
 
 /// A weight window's target weight at a point.
 pub(super) type Target = Box<dyn Fn(DVec3) -> f64 + Sync>;
@@ -101,7 +113,17 @@ pub(super) fn splitting_target<M: Medium, P: PhaseFunction>(
             .iter()
             .map(|(d, (r0, f0))| {
                 let (r, f) = reflectance(d, x);
-                f / f0 * (-kappa * (r - r0)).exp()
+                let diffuse = f / f0 * (-kappa * (r - r0)).exp();
+                if d.is_point() {
+                    // A point's neighbourhood: its connections grow as `1 / r^2` within a
+                    // transport length (light scattered forwards keeps its direction), where
+                    // the dipole's source depth flattens.
+                    let to = (x - d.center()).length_squared();
+                    let near = (-to.sqrt() / transport + kappa * r0).exp() / (to * f0);
+                    diffuse + NEAR_GAIN * near
+                } else {
+                    diffuse
+                }
             })
             .sum();
         w0 / importance

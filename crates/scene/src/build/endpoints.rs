@@ -646,16 +646,24 @@ pub fn build_detectors<M: speckle_medium::Medium>(
             WeightingSpec::Flux => Weighting::Flux,
             WeightingSpec::Fluence => Weighting::Fluence,
         };
-        let d = Detector::new(
-            &format!("sensors[{i}]"),
-            medium,
-            DVec3::from_array(*position),
-            *radius,
+        let (field, center) = (format!("sensors[{i}]"), DVec3::from_array(*position));
+        let (na, axis) = (
             numerical_aperture.unwrap_or(outside_index),
             axis.map(DVec3::from_array),
-            outside_index,
-            weighting,
-        )?;
+        );
+        let d = match radius {
+            Some(r) => Detector::new(
+                &field,
+                medium,
+                center,
+                *r,
+                na,
+                axis,
+                outside_index,
+                weighting,
+            )?,
+            None => Detector::point(&field, medium, center, na, axis, outside_index, weighting)?,
+        };
         desc.push(EndpointInfo {
             weighting: Some(match d.weighting() {
                 Weighting::Flux => "flux",
