@@ -4,7 +4,9 @@
 //! the scene of `tests/detectors.rs` (a 1 cm cube, `mu_s = 10 /cm`, isotropic, a source and a
 //! 1 mm disc 3 mm apart on one face; the point sensors are the seven of the disc rule), both at
 //! six lags; and the detector on the shipped tissue scene (`mu_s = 100 /cm`, `g = 0.9`, 12
-//! lags). Fixed seeds; `cargo bench --bench detectors`; paths per second. The time to equal
+//! lags); a point detector (fluence at the disc's centre) against the point sensor there, and
+//! on the tissue cube 5 mm from the source. Fixed seeds; `cargo bench --bench detectors`; paths
+//! per second. The time to equal
 //! error follows from these rates and the standard errors per path that `tests/detectors.rs`
 //! prints (docs/performance.md).
 
@@ -97,6 +99,38 @@ fn detectors(c: &mut Criterion) {
             )
         })
     });
+    // A point detector at the disc's centre against the point sensor there (the same reading:
+    // docs/experiments-tissue.md).
+    let point_scene = |m: HomogeneousBox, phase: Phase, at: DVec3, from: DVec3| {
+        let d = Detector::point("d", &m, at, 1.0, None, 1.0, Weighting::Fluence).unwrap();
+        Scene::with_detectors(m, vec![phase], lambda, vec![Source::point(from)], vec![d]).unwrap()
+    };
+    let point = point_scene(cube(), Phase::Isotropic, centre, source);
+    for (name, t) in &techniques[1..] {
+        g.bench_function(format!("cube/point_detector/{name}"), |b| {
+            b.iter(|| {
+                let motion = Some((&model, &lags[..]));
+                black_box(render_detectors_with(&point, motion, &opts, *t, &NoProgress).unwrap())
+            })
+        });
+    }
+    let one = Scene::new(
+        cube(),
+        Phase::Isotropic,
+        lambda,
+        vec![Source::point(source)],
+        vec![Sensor::point(centre)],
+        Pair::all(1, 1),
+    )
+    .unwrap();
+    g.bench_function("cube/point_sensor", |b| {
+        b.iter(|| {
+            black_box(
+                render_correlation(&one, &model, &lags, &Entries::Diagonal, &opts, &NoProgress)
+                    .unwrap(),
+            )
+        })
+    });
     let o = speckle::scene::Overrides::default();
     let p = speckle::scene::examples::load("tissue_fibre", &o)
         .unwrap()
@@ -110,6 +144,31 @@ fn detectors(c: &mut Criterion) {
             })
         });
     }
+    // The tissue cube's point 5 mm from the source, where point sensors do not converge.
+    let b = Aabb::new(DVec3::new(-0.5, -0.5, 0.0), DVec3::new(0.5, 0.5, 1.0)).unwrap();
+    let tissue = HomogeneousBox::new(b, 100.0, 0.1).unwrap();
+    let hg = Phase::hg(0.9).unwrap();
+    let point = point_scene(
+        tissue,
+        hg,
+        DVec3::new(0.25, 0.0, 0.0),
+        DVec3::new(-0.25, 0.0, 0.0),
+    );
+    g.bench_function("tissue/point_detector", |b| {
+        b.iter(|| {
+            let motion = Some((&m.model, m.lags.as_slice()));
+            black_box(
+                render_detectors_with(
+                    &point,
+                    motion,
+                    &opts,
+                    DetectorTechniques::default(),
+                    &NoProgress,
+                )
+                .unwrap(),
+            )
+        })
+    });
     g.finish();
 }
 
