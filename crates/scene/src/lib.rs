@@ -41,6 +41,7 @@ pub mod problem;
 pub mod safe;
 pub mod schema;
 pub mod tools;
+pub mod units;
 pub mod validate;
 
 pub use build::render::{OutputSettings, RenderSettings};

@@ -239,6 +239,8 @@ pub struct Problem {
     pub motion: Option<crate::build::motion::MotionSettings>,
     /// What `speckle fit` fits (`[fit]`), when given.
     pub fit: Option<crate::build::fit::FitSettings>,
+    /// The declared units (`units`).
+    pub units: crate::units::Units,
 }
 
 impl Problem {
@@ -372,6 +374,7 @@ impl Problem {
                 ));
             }
         };
+        let units = crate::units::Units::build(file.units.as_ref())?;
         let motion = match &file.motion {
             Some(m) => Some(crate::build::motion::build(
                 m,
@@ -416,6 +419,7 @@ impl Problem {
             medium_facts: facts,
             motion,
             fit,
+            units,
         })
     }
 
@@ -596,6 +600,7 @@ impl Problem {
             "n_sensors": self.n_sensors(),
             "pairs": self.pairs(),
             "medium_info": self.medium_facts,
+            "units": self.units.json(),
         });
         match m {
             AnyMedium::Box(b) => {
@@ -734,7 +739,14 @@ impl Problem {
             "files": files,
             "summary": summary,
             "units": {
-                "length": "the scene's unit (that of `wavelength`)",
+                "length": self.units.length.map_or(
+                    "the scene's unit (that of `wavelength`)".to_string(),
+                    |u| format!("{} (declared in `units`; that of `wavelength`)", u.symbol),
+                ),
+                "time": self.units.time.map_or(
+                    "the scene's unit (that of `motion.lags`)".to_string(),
+                    |u| format!("{} (declared in `units`; that of `motion.lags`)", u.symbol),
+                ),
                 "plane_wave_source": "unit amplitude exp(i k d.x)",
                 "point_source": point_source,
                 "far_field_sensor": far_field_sensor,

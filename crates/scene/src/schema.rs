@@ -52,6 +52,22 @@ pub struct SceneFile {
     /// commands.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fit: Option<FitSpec>,
+    /// The units the scene's numbers are in (`units = { length = "cm", time = "s" }`): carried
+    /// into the JSON sidecars and the plots' axes; the numbers themselves are unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub units: Option<UnitsSpec>,
+}
+
+/// `units`: the length and time units of the scene's numbers (each optional).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnitsSpec {
+    /// `"m"`, `"cm"`, `"mm"`, `"um"` or `"nm"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<String>,
+    /// `"s"`, `"ms"`, `"us"` or `"ns"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<String>,
 }
 
 /// `[fit]`: a measurement and the parameters of the scene to fit to it (`speckle fit`).
@@ -108,8 +124,85 @@ pub struct MotionSpec {
     /// One motion per material instead (not with `diffusion` or `drift`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub materials: Option<Vec<MaterialMotionSpec>>,
-    /// The time lags `t` of the correlations `C(t)` (at least one; the first is usually 0).
-    pub lags: Vec<f64>,
+    /// The time lags `t` of the correlations `C(t)`: a list (at least one; the first is
+    /// usually 0), or a multi-tau grid as hardware correlators produce it, `lags = { multi_tau
+    /// = { first = 1e-7, last = 1e-2, per_octave = 8 } }` ([`LagsSpec`]).
+    pub lags: LagsSpec,
+}
+
+/// `motion.lags`: a list of lags, or a multi-tau grid.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum LagsSpec {
+    /// The lags as listed.
+    List(Vec<f64>),
+    /// A multi-tau grid (`crate::build::motion::multi_tau`).
+    MultiTau {
+        /// The grid's parameters.
+        multi_tau: MultiTauSpec,
+    },
+}
+
+/// The parameters of a multi-tau lag grid: 0, then `2 P` lags `first, 2 first, .., 2 P first`,
+/// then octaves of `P` lags each whose step doubles (`2^j first (P + m)`, `m = 1 .. P`, for
+/// octave `j = 1, 2, ..`), up to `last`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MultiTauSpec {
+    /// The first non-zero lag, also the first octave's step (> 0).
+    pub first: f64,
+    /// The largest lag (>= `first`).
+    pub last: f64,
+    /// Lags per octave `P` (1 to 64; hardware correlators use 8 or 16).
+    pub per_octave: u32,
+}
+
+impl From<Vec<f64>> for LagsSpec {
+    fn from(v: Vec<f64>) -> Self {
+        LagsSpec::List(v)
+    }
+}
+
+impl<'de> Deserialize<'de> for LagsSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = LagsSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a list of time lags or { multi_tau = { first, last, per_octave } }")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<LagsSpec, A::Error> {
+                let mut v = Vec::new();
+                // Bounded by the file's size (read with a limit, `crate::safe`); the builder
+                // checks the count against `MAX_LAGS`.
+                while let Some(t) = a.next_element::<f64>()? {
+                    v.push(t);
+                }
+                Ok(LagsSpec::List(v))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<LagsSpec, A::Error> {
+                let mut grid = None;
+                while let Some(key) = a.next_key::<String>()? {
+                    if key != "multi_tau" || grid.is_some() {
+                        return Err(serde::de::Error::custom(format!(
+                            "unknown or repeated key `{key}`: a lag grid is `{{ multi_tau = {{ \
+                             first, last, per_octave }} }}`"
+                        )));
+                    }
+                    grid = Some(a.next_value::<MultiTauSpec>()?);
+                }
+                grid.map(|multi_tau| LagsSpec::MultiTau { multi_tau })
+                    .ok_or_else(|| serde::de::Error::custom("a lag grid needs `multi_tau`"))
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 /// The motion of one material in `[[motion.materials]]`.

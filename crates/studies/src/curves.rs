@@ -20,16 +20,39 @@ pub struct Curve {
     pub err: Vec<f64>,
 }
 
+/// The unit of a figure's x values, for its tick labels ([`Figure::x_unit`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxisUnit {
+    /// An SI unit: `base` (`"s"`, `"m"`) and the value in it of one unit of the data (`1e-2`
+    /// for data in cm with base `"m"`); ticks carry SI prefixes (`20 us`).
+    Si {
+        /// The SI base symbol.
+        base: String,
+        /// One data unit in the base unit.
+        scale: f64,
+    },
+    /// A unit known only by a description (`"the scene's time unit"`); ticks are scaled by a
+    /// power of ten the label states.
+    Described(String),
+}
+
 /// A figure: title, subtitle, axis labels and its curves (at most [`MAX_CURVES`] are drawn,
-/// the figure says how many were left out).
+/// the figure says how many were left out). With [`Figure::x_log`], an x axis whose positive
+/// values span two decades or more is logarithmic (non-positive abscissae are then left out);
+/// tick labels are distinct numbers, with SI prefixes when the unit is known.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Figure {
     /// Title (first line).
     pub title: String,
     /// Subtitle (second line).
     pub subtitle: String,
-    /// Label of the x axis.
+    /// Label of the x axis, without its unit (see [`Figure::x_unit`]).
     pub x_label: String,
+    /// The unit of the x values, when they have one.
+    pub x_unit: Option<AxisUnit>,
+    /// Whether the x axis turns logarithmic when its positive values span two decades or more
+    /// (time lags).
+    pub x_log: bool,
     /// Label of the y axis.
     pub y_label: String,
     /// The curves.
@@ -61,12 +84,37 @@ impl Figure {
         Ok(out)
     }
 
+    /// Whether the x axis is logarithmic: [`Figure::x_log`] and the positive abscissae span
+    /// two decades or more.
+    pub fn log_axis(&self) -> bool {
+        if !self.x_log {
+            return false;
+        }
+        let (mut lo, mut hi) = (f64::MAX, 0.0f64);
+        for c in self.curves.iter().take(MAX_CURVES) {
+            for &x in c.x.iter().filter(|x| x.is_finite() && **x > 0.0) {
+                (lo, hi) = (lo.min(x), hi.max(x));
+            }
+        }
+        hi >= 100.0 * lo
+    }
+
+    /// The plotted abscissa of `x`: `log10(x)` on a logarithmic axis (NaN for `x <= 0`).
+    fn plotted(x: f64, log: bool) -> f64 {
+        match (log, x > 0.0) {
+            (false, _) => x,
+            (true, true) => x.log10(),
+            (true, false) => f64::NAN,
+        }
+    }
+
     /// The ranges of the finite points (with their error bars), padded; `[0, 1]` when empty.
-    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+    fn ranges(&self, log: bool) -> ((f64, f64), (f64, f64)) {
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for c in self.curves.iter().take(MAX_CURVES) {
             for (i, (&x, &y)) in c.x.iter().zip(&c.y).enumerate() {
                 let e = c.err.get(i).copied().unwrap_or(0.0);
+                let x = Self::plotted(x, log);
                 if !(x.is_finite() && y.is_finite() && e.is_finite()) {
                     continue;
                 }
@@ -101,7 +149,9 @@ impl Figure {
             font(12.0).color(&RGBColor(0x44, 0x44, 0x44)),
         ))?;
         let (plot, legend) = root.split_horizontally(PLOT_WIDTH);
-        let ((x0, x1), (y0, y1)) = self.ranges();
+        let log = self.log_axis();
+        let ((x0, x1), (y0, y1)) = self.ranges(log);
+        let ticks = Ticks::new(self, log, (x0, x1));
         let mut chart = ChartBuilder::on(&plot)
             .margin_top(60)
             .margin_right(20)
@@ -112,9 +162,10 @@ impl Figure {
             .build_cartesian_2d(x0..x1, y0..y1)?;
         chart
             .configure_mesh()
-            .x_desc(self.x_label.clone())
+            .x_desc(ticks.label.clone())
             .y_desc(self.y_label.clone())
-            .x_labels(7)
+            .x_label_formatter(&|x| ticks.format(*x))
+            .x_labels(TICKS)
             .y_labels(8)
             .disable_x_mesh()
             .bold_line_style(RGBColor(0xe4, 0xe4, 0xe4))
@@ -133,7 +184,10 @@ impl Figure {
                 c.x.iter()
                     .zip(&c.y)
                     .enumerate()
-                    .map(|(k, (&x, &y))| (x, y, c.err.get(k).copied().unwrap_or(0.0)))
+                    .map(|(k, (&x, &y))| {
+                        let e = c.err.get(k).copied().unwrap_or(0.0);
+                        (Self::plotted(x, log), y, e)
+                    })
                     .filter(|(x, y, e)| x.is_finite() && y.is_finite() && e.is_finite())
                     .collect();
             chart.draw_series(LineSeries::new(
@@ -163,6 +217,139 @@ impl Figure {
     }
 }
 
+/// Tick labels requested on the x axis.
+const TICKS: usize = 7;
+
+/// The x axis's label and tick format (see [`Figure`]).
+struct Ticks {
+    /// The axis label with its unit.
+    label: String,
+    /// On a logarithmic axis, the unit's SI base and scale (ticks are `10^x` data units).
+    log: Option<(String, f64)>,
+    /// On a linear axis, the factor from data to tick values and the decimals shown.
+    factor: f64,
+    decimals: usize,
+}
+
+/// SI prefixes from 1e-15 to 1e9.
+const PREFIXES: [(&str, i32); 9] = [
+    ("f", -15),
+    ("p", -12),
+    ("n", -9),
+    ("u", -6),
+    ("m", -3),
+    ("", 0),
+    ("k", 3),
+    ("M", 6),
+    ("G", 9),
+];
+
+/// The SI prefix (and its exponent) for values of magnitude `m` (1 to 1000 of the prefix).
+fn prefix(m: f64) -> (&'static str, i32) {
+    let e = if m > 0.0 && m.is_finite() {
+        (m.log10() / 3.0).floor() as i32 * 3
+    } else {
+        0
+    };
+    let e = e.clamp(-15, 9);
+    PREFIXES
+        .iter()
+        .find(|p| p.1 == e)
+        .copied()
+        .unwrap_or(("", 0))
+}
+
+/// `v` with three significant digits and an SI prefix on `base` (`31.6 us`).
+pub fn si(v: f64, base: &str) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v} {base}");
+    }
+    let (p, e) = prefix(v.abs());
+    let x = v / 10f64.powi(e);
+    let digits = 2usize.saturating_sub(x.abs().log10().floor().max(0.0) as usize);
+    let text = format!("{x:.digits$}");
+    let text = if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    };
+    format!("{text} {p}{base}")
+}
+
+impl Ticks {
+    fn new(f: &Figure, log: bool, (x0, x1): (f64, f64)) -> Self {
+        if log {
+            let (log, label) = match &f.x_unit {
+                Some(AxisUnit::Si { base, scale }) => (
+                    Some((base.clone(), *scale)),
+                    format!("{} (log scale)", f.x_label),
+                ),
+                Some(AxisUnit::Described(d)) => (None, format!("{} ({d}, log scale)", f.x_label)),
+                None => (None, format!("{} (log scale)", f.x_label)),
+            };
+            return Self {
+                label,
+                log: log.or(Some((String::new(), f64::NAN))),
+                factor: 1.0,
+                decimals: 0,
+            };
+        }
+        let scale = match &f.x_unit {
+            Some(AxisUnit::Si { scale, .. }) => *scale,
+            _ => 1.0,
+        };
+        let m = x0.abs().max(x1.abs()) * scale;
+        let (p, e) = prefix(m);
+        let factor = scale / 10f64.powi(e);
+        // Enough decimals for ticks a seventh of the range apart to differ.
+        let step = (x1 - x0) * factor / TICKS as f64;
+        let decimals = if step > 0.0 && step.is_finite() {
+            (-step.log10().floor()).clamp(0.0, 8.0) as usize + 1
+        } else {
+            1
+        };
+        let label = match (&f.x_unit, e) {
+            (Some(AxisUnit::Si { base, .. }), _) => format!("{} ({p}{base})", f.x_label),
+            (Some(AxisUnit::Described(d)), 0) => format!("{} ({d})", f.x_label),
+            (Some(AxisUnit::Described(d)), e) => format!("{} (1e{e} x {d})", f.x_label),
+            (None, 0) => f.x_label.clone(),
+            (None, e) => format!("{} (x 1e{e})", f.x_label),
+        };
+        Self {
+            label,
+            log: None,
+            factor,
+            decimals,
+        }
+    }
+
+    fn format(&self, x: f64) -> String {
+        match &self.log {
+            Some((base, scale)) if scale.is_finite() => si(10f64.powf(x) * scale, base),
+            Some(_) => {
+                let v = 10f64.powf(x);
+                let text = format!("{v:.2e}");
+                // 3.16e-5, 1e-5 (trailing zeros of the mantissa dropped).
+                match text.split_once('e') {
+                    Some((m, e)) if m.contains('.') => {
+                        format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
+                    }
+                    _ => text,
+                }
+            }
+            None => {
+                let v = x * self.factor;
+                let v = if v.abs() < 1e-12 * self.factor.abs().max(1.0) {
+                    0.0
+                } else {
+                    v
+                };
+                format!("{v:.*}", self.decimals)
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,6 +366,8 @@ mod tests {
             title: "g1".into(),
             subtitle: "test".into(),
             x_label: "t".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "|g1|".into(),
             curves: (0..10).map(curve).collect(),
         };
@@ -196,5 +385,56 @@ mod tests {
             ..f
         };
         assert!(empty.svg().unwrap().contains("</svg>"));
+    }
+
+    #[test]
+    fn ticks_carry_si_prefixes_and_differ() {
+        assert_eq!(si(2e-5, "s"), "20 us");
+        assert_eq!(si(3.1623e-7, "s"), "316 ns");
+        assert_eq!(si(1.0, "m"), "1 m");
+        assert_eq!(si(0.0125, "m"), "12.5 mm");
+        let figure = |x: Vec<f64>, unit: Option<AxisUnit>, log: bool| Figure {
+            title: String::new(),
+            subtitle: String::new(),
+            x_label: "lag t".into(),
+            x_unit: unit,
+            x_log: log,
+            y_label: "|g1|".into(),
+            curves: vec![Curve {
+                label: "a".into(),
+                y: vec![1.0; x.len()],
+                x,
+                err: vec![],
+            }],
+        };
+        let seconds = || {
+            Some(AxisUnit::Si {
+                base: "s".into(),
+                scale: 1.0,
+            })
+        };
+        // Linear, in us: the axis names the prefix, ticks are numbers in it.
+        let f = figure(vec![0.0, 1e-5, 2e-5], seconds(), true);
+        assert!(!f.log_axis());
+        let (x0, x1) = f.ranges(false).0;
+        let t = Ticks::new(&f, false, (x0, x1));
+        assert_eq!(t.label, "lag t (us)");
+        assert_eq!(t.format(1.5e-5), "15.0");
+        // Logarithmic over three decades, ticks with prefixes.
+        let f = figure(vec![0.0, 1e-7, 1e-6, 1e-4], seconds(), true);
+        assert!(f.log_axis());
+        let t = Ticks::new(&f, true, f.ranges(true).0);
+        assert_eq!(t.label, "lag t (log scale)");
+        assert_eq!(t.format(-6.5), "316 ns");
+        // Not with x_log off; a described unit is scaled by a stated power of ten.
+        let f = figure(
+            vec![0.0, 1e-7, 1e-4],
+            Some(AxisUnit::Described("the scene's time unit".into())),
+            false,
+        );
+        assert!(!f.log_axis());
+        let t = Ticks::new(&f, false, f.ranges(false).0);
+        assert_eq!(t.label, "lag t (1e-6 x the scene's time unit)");
+        assert_eq!(t.format(5e-5), "50.0");
     }
 }

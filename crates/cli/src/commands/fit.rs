@@ -172,19 +172,12 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     finish(staged)
 }
 
-/// The measurement with its error bars and the model at the estimate (lags on a log10 axis).
+/// The measurement with its error bars and the model at the estimate (lags on a logarithmic
+/// axis when they span decades).
 fn figure(p: &Problem, f: &Fitted) -> Figure {
     let o = &f.outcome;
     let log = f.quantity != Quantity::Intensity;
-    let x = |v: &[f64]| -> Vec<f64> {
-        if log {
-            v.iter()
-                .map(|t| if *t > 0.0 { t.log10() } else { f64::NAN })
-                .collect()
-        } else {
-            v.to_vec()
-        }
-    };
+    let x = |v: &[f64]| -> Vec<f64> { v.to_vec() };
     let estimates: Vec<String> = (0..o.names.len())
         .map(|i| {
             format!(
@@ -202,11 +195,9 @@ fn figure(p: &Problem, f: &Fitted) -> Figure {
             o.chi2,
             o.dof
         ),
-        x_label: if log {
-            "log10 lag t (the scene's time unit)".into()
-        } else {
-            "pair".into()
-        },
+        x_label: if log { "lag t" } else { "pair" }.into(),
+        x_unit: log.then(|| super::time_axis(p)),
+        x_log: log,
         y_label: f.quantity.name().into(),
         curves: vec![
             Curve {

@@ -270,7 +270,9 @@ fn figure(p: &Problem, t: &Temporal, reference: Option<(&Reference, &Comparison)
             },
             compared
         ),
-        x_label: "lag t (the scene's time unit)".into(),
+        x_label: "lag t".into(),
+        x_unit: Some(super::time_axis(p)),
+        x_log: true,
         y_label: if t.g1.is_some() {
             "|g1(t)|".into()
         } else {

@@ -323,6 +323,19 @@ pub fn shard(
     finish(staged)
 }
 
+/// The unit of a plot's time axis: the scene's declared time unit (SI-prefixed ticks), else
+/// a description.
+pub fn time_axis(p: &Problem) -> speckle::studies::curves::AxisUnit {
+    use speckle::studies::curves::AxisUnit;
+    match p.units.time {
+        Some(u) => AxisUnit::Si {
+            base: u.base.into(),
+            scale: u.scale,
+        },
+        None => AxisUnit::Described("the scene's time unit".into()),
+    }
+}
+
 /// A scene error of `p`, in its document (exit code 2).
 pub fn in_scene(p: &Problem) -> impl Fn(speckle::scene::SceneError) -> LoadError + '_ {
     move |e| p.in_document(e)

@@ -125,7 +125,9 @@ pub fn run(a: &ShapingArgs) -> anyhow::Result<()> {
              standard error",
             s.modes, a.learn, r
         ),
-        x_label: "time since the mask was frozen (the scene's time unit)".into(),
+        x_label: "time since the mask was frozen".into(),
+        x_unit: Some(super::time_axis(&p)),
+        x_log: false,
         y_label: "|<E(0) conj(E(t))>| / <|E(0)|^2>".into(),
         curves: vec![
             curve("focus after shaping", &s.focus_correlation),

@@ -95,7 +95,9 @@ fn figure(p: &Problem, t: &Tracking, c0: f64) -> Figure {
              {tracked:.1} SE, no tracking {untracked:.1} SE; error bars: one SE",
             t.drift[0], t.drift[1], t.drift[2], t.paths
         ),
-        x_label: "lag t (the scene's time unit)".into(),
+        x_label: "lag t".into(),
+        x_unit: Some(super::time_axis(p)),
+        x_log: true,
         y_label: "|C(t)| / C(0) at U = 0".into(),
         curves,
     }

@@ -2,7 +2,7 @@
 //! correlations, validated against the medium.
 
 use crate::SceneError;
-use crate::schema::MotionSpec;
+use crate::schema::{LagsSpec, MotionSpec, MultiTauSpec};
 use crate::validate::{invalid, non_negative, planar, vec3};
 use speckle_medium::{DVec3, Dimension, Medium};
 use speckle_motion::{Motion, MotionModel};
@@ -74,7 +74,14 @@ pub fn build<M: Medium>(
             drift: drift("motion.drift".into(), spec.drift, dim)?,
         }),
     };
-    let lags = &spec.lags;
+    let grid;
+    let lags = match &spec.lags {
+        LagsSpec::List(v) => v,
+        LagsSpec::MultiTau { multi_tau } => {
+            grid = multi_tau_lags(multi_tau)?;
+            &grid
+        }
+    };
     if lags.is_empty() || lags.len() > MAX_LAGS {
         return Err(invalid(
             "motion.lags",
@@ -100,4 +107,63 @@ pub fn build<M: Medium>(
         model,
         lags: lags.clone(),
     })
+}
+
+/// The largest `last / first` of a multi-tau grid (50 octaves).
+const MAX_OCTAVES_SPAN: f64 = (1u64 << 50) as f64;
+
+/// The most lags per octave of a multi-tau grid.
+pub const MAX_PER_OCTAVE: u32 = 64;
+
+/// The lags of a multi-tau grid ([`MultiTauSpec`]): 0, then `k first` for `k = 1 .. 2 P`, then
+/// for each octave `j = 1, 2, ..` the `P` lags `2^j first (P + m)`, `m = 1 .. P`, while they do
+/// not exceed `last` (each lag one product of `first` and an integer, so a list of the same
+/// numbers gives bitwise the same render). Errors name `motion.lags.multi_tau.*`, and a grid of
+/// more than [`MAX_LAGS`] lags is refused before it is built.
+pub fn multi_tau_lags(spec: &MultiTauSpec) -> Result<Vec<f64>, SceneError> {
+    let field = |k: &str| format!("motion.lags.multi_tau.{k}");
+    let (first, last, p) = (spec.first, spec.last, spec.per_octave);
+    if !(first.is_finite() && first > 0.0) {
+        return Err(invalid(
+            field("first"),
+            format!("must be finite and > 0 (got {first})"),
+        ));
+    }
+    if !(last.is_finite() && last >= first && last / first <= MAX_OCTAVES_SPAN) {
+        return Err(invalid(
+            field("last"),
+            format!(
+                "must be finite, >= first = {first:e} and at most 2^50 times it (got {last:e})"
+            ),
+        ));
+    }
+    if !(1..=MAX_PER_OCTAVE).contains(&p) {
+        return Err(invalid(
+            field("per_octave"),
+            format!("must be 1 to {MAX_PER_OCTAVE} (got {p})"),
+        ));
+    }
+    // The multiples of `first`, in order: 1 .. 2P, then 2^j (P + m).
+    let multiples = (1..=2 * u64::from(p)).chain(
+        (1..=50u32)
+            .flat_map(move |j| (1..=u64::from(p)).map(move |m| (1u64 << j) * (u64::from(p) + m))),
+    );
+    let mut lags = vec![0.0];
+    for k in multiples {
+        let t = first * k as f64;
+        if t > last {
+            break;
+        }
+        if lags.len() == MAX_LAGS {
+            return Err(invalid(
+                "motion.lags",
+                format!(
+                    "the multi-tau grid from {first:e} to {last:e} with {p} lags per octave has \
+                     more than {MAX_LAGS} lags"
+                ),
+            ));
+        }
+        lags.push(t);
+    }
+    Ok(lags)
 }

@@ -503,6 +503,8 @@ impl Refocus {
                 f.render.paths
             ),
             x_label: "focus displacement Delta (um)".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "focus power |E A(Delta)|^2 / |E A(0)|^2".into(),
             curves: vec![
                 curve("MC, shift only (Eq. 51)", &self.shift, &self.shift_se),

@@ -441,6 +441,8 @@ impl MemoryTilt {
                 s.thickness, s.mean_free_path, s.wavelength, s.file.render.paths
             ),
             x_label: "tilt d theta (millidegrees)".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "|C(i, i + d theta; v, v + d theta)|^2, normalised".into(),
             curves,
         }

@@ -236,6 +236,8 @@ impl TiltFitted {
                 f.measurement.origin, self.transport.0
             ),
             x_label: "tilt d theta (millidegrees)".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "|C|^2, normalised".into(),
             curves,
         }

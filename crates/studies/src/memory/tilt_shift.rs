@@ -664,6 +664,8 @@ impl TiltShift {
                 self.model_slope
             ),
             x_label: "output shift Delta_b (um), Delta_a = Delta_b - L theta".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "|C(Delta_b, theta)| / C(0, 0)".into(),
             curves,
         }

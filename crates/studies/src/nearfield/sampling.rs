@@ -772,6 +772,8 @@ impl SamplingGain {
                 s.file.render.reference_paths, r.reference_stderr, s.paths
             ),
             x_label: "log10 wall time (s)".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "log10 relative error".into(),
             curves,
         }

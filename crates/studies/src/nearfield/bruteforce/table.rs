@@ -259,6 +259,8 @@ impl BruteForce {
                 self.z_max_biased()
             ),
             x_label: "entry (a, b) of the upper triangle, a = 3 source + sensor".into(),
+            x_unit: None,
+            x_log: false,
             y_label: "Re C[a, b]".into(),
             curves,
         }
