@@ -530,3 +530,68 @@ fn tracking_writes_three_curves_and_names_bad_settings() {
         assert!(stderr(&o).contains(field), "{field}: {}", stderr(&o));
     }
 }
+
+/// `speckle wave` with `[motion]` solves the moving scatterers exactly and writes `C[j, j](t)`
+/// in the layout of `speckle g1`'s `correlation.npy`: the two agree entry by entry (real and
+/// imaginary parts, within 4.5 combined standard errors) on the flatland scene of the 2023
+/// paper's Fig. 7, three sensors of it; lags that do not start at 0 and increase, and
+/// `--shard`, are refused naming the field.
+#[test]
+fn wave_with_motion_agrees_with_g1() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenes/spatiotemporal_2d.toml"
+    ))
+    .unwrap()
+    .replace("nx = 21", "nx = 3")
+    .replace("step_x = [0.1, 0.0, 0.0]", "step_x = [0.5, 0.0, 0.0]");
+    let s = write(dir.path(), "st.toml", &text);
+    let s = s.to_str().unwrap();
+    let o = speckle(
+        dir.path(),
+        &["wave", s, "--configurations", "400", "-q", "--out", "o"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = speckle(
+        dir.path(),
+        &["g1", s, "--paths", "40000", "-q", "--out", "o"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("o");
+    let w = npy_f64(&out.join("spatiotemporal_2d.wave_correlation.npy"));
+    let ws = npy_f64(&out.join("spatiotemporal_2d.wave_correlation_stderr.npy"));
+    let g = npy_f64(&out.join("spatiotemporal_2d.correlation.npy"));
+    let gs = npy_f64(&out.join("spatiotemporal_2d.correlation_stderr.npy"));
+    assert_eq!(w.len(), 2 * 3 * 21);
+    assert_eq!(w.len(), g.len());
+    let mut worst: f64 = 0.0;
+    for i in 0..w.len() {
+        let se = ws[i].hypot(gs[i]);
+        if se > 0.0 {
+            worst = worst.max((w[i] - g[i]).abs() / se);
+        }
+    }
+    println!("largest deviation {worst:.2} combined SE");
+    assert!(worst < 4.5, "{worst}");
+    // The correlation decays over the lags (the test is of moving scatterers).
+    assert!(w[2 * 20] < 0.2 * w[0], "{} -> {}", w[0], w[40]);
+    let g1 = npy_f64(&out.join("spatiotemporal_2d.wave_g1.npy"));
+    assert_eq!((g1[0], g1[1]), (1.0, 0.0));
+    // Lags the solver cannot step through, and shards.
+    let bad = text.replace("lags = [0.0, 0.1,", "lags = [0.1, 0.0,");
+    let b = write(dir.path(), "bad.toml", &bad);
+    let o = speckle(
+        dir.path(),
+        &["wave", b.to_str().unwrap(), "-q", "--out", "b"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("motion.lags"), "{}", stderr(&o));
+    let o = speckle(
+        dir.path(),
+        &["wave", s, "--shard", "1/2", "-q", "--out", "b"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("shard"), "{}", stderr(&o));
+    assert!(!dir.path().join("b").exists());
+}

@@ -395,8 +395,9 @@ pub enum SourceSpec {
     },
     /// A focused Gaussian beam (Bar et al. 2020, Eqs. 9-10, 23-27): unit plane waves weighted by
     /// a unit-integral vMF mask about `axis`, focused at `focus` (which may lie inside the
-    /// medium). The exact wave solver and the covariance, intensity, single-scattering and field
-    /// renders take it; the mean and `g1` refuse it for now.
+    /// medium). Every command takes it: the exact wave solver, the mean, and the path-traced
+    /// renders (covariance, intensity, single scattering, fields, `g1`, field sequences) with an
+    /// isotropic or vMF phase function.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],
@@ -459,8 +460,9 @@ pub enum SensorSpec {
     },
     /// A lens of Gaussian (vMF) apodization focused at `focus` (which may lie inside the medium),
     /// reading the far-field amplitudes it collects weighted by its unit-integral mask about
-    /// `axis` (Bar et al. 2020, Eqs. 9-10). The exact wave solver and the covariance, intensity,
-    /// single-scattering and field renders take it; the mean and `g1` refuse it for now.
+    /// `axis` (Bar et al. 2020, Eqs. 9-10). Every command takes it: the exact wave solver, the
+    /// mean, and the path-traced renders (covariance, intensity, single scattering, fields,
+    /// `g1`, field sequences) with an isotropic or vMF phase function.
     GaussianBeam {
         /// The focal point.
         focus: [f64; 3],

@@ -25,6 +25,7 @@ pub mod single;
 pub mod tilt_shift;
 pub mod tracking;
 pub mod wave;
+pub mod wave_motion;
 
 use crate::error::{self, InputError};
 use crate::image::Gray;

@@ -1,6 +1,7 @@
 //! `speckle wave`: the exact Foldy-Lax solution of `R` random configurations of the scene's
 //! scatterers (`speckle::wave`), with their empirical mean and covariance in the pair order and
-//! layout of `speckle covariance`.
+//! layout of `speckle covariance`; with `[motion]`, the moving-scatterer solution
+//! (`wave_motion.rs`).
 
 use super::fields::{FieldImages, layout};
 use super::*;
@@ -31,6 +32,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
     // The solver's own checks first (isotropic phase, sigma_a = 0, the size of the medium).
     let scene = p.box_scene().map_err(in_scene(&p))?;
+    if p.motion.is_some() {
+        return super::wave_motion::run(&p, &scene, run);
+    }
     let rr = p.render.configurations;
     let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
     number_density(&scene).map_err(wave_error)?;
