@@ -1,5 +1,5 @@
-//! Plots a reader can trust (issue 28, item 6): the SVG figures of `speckle g1` and `speckle
-//! tracking` read back, their x-axis tick labels distinct neighbour by neighbour and the time
+//! Plots a reader can trust (issue 28, item 6): the SVG figures of `speckle g1` (`g1` and
+//! `g2`) and `speckle tracking` read back, their x-axis tick labels distinct neighbour by neighbour and the time
 //! axis carrying the unit a scene declares (`units = { length = "cm", time = "s" }`), on a
 //! logarithmic axis when the lags span decades; and multi-tau lag grids (`lags = { multi_tau =
 //! { .. } }`), which render bitwise as the same lags given as a list.
@@ -103,6 +103,7 @@ fn g1_and_tracking_plots_have_distinct_ticks_and_units() {
     ];
     for (i, (lags, log)) in cases.iter().enumerate() {
         let s = write(dir.path(), &format!("g{i}.toml"), &dcs(dir.path(), lags));
+        let out = format!("o{i}");
         let o = speckle(
             dir.path(),
             &[
@@ -112,12 +113,20 @@ fn g1_and_tracking_plots_have_distinct_ticks_and_units() {
                 "4000",
                 "-q",
                 "--out",
-                "o",
+                &out,
             ],
         );
         assert!(o.status.success(), "{}", stderr(&o));
-        let svg = std::fs::read_to_string(dir.path().join("o/dcs.g1.svg")).unwrap();
+        let svg = std::fs::read_to_string(dir.path().join(format!("o{i}/dcs.g1.svg"))).unwrap();
         assert_eq!(check_time_axis(&svg, lags), *log, "{lags}");
+        // g2 as DCS users read it, on the same axis, when there is a zero lag.
+        let g2 = dir.path().join(format!("o{i}/dcs.g2.svg"));
+        assert_eq!(g2.exists(), lags.starts_with("[0.0"), "{lags}");
+        if g2.exists() {
+            let svg = std::fs::read_to_string(g2).unwrap();
+            assert!(svg.contains("beta = 1"));
+            assert_eq!(check_time_axis(&svg, lags), *log, "{lags}");
+        }
     }
     // Tracking's three curves share the axis.
     let text = std::fs::read_to_string(concat!(

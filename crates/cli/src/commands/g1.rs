@@ -137,6 +137,11 @@ pub fn run(a: &G1Args) -> anyhow::Result<()> {
     let plot = figure(&p, t, reference.as_ref().zip(comparison.as_ref()));
     staged.add(svg_file.clone(), plot.svg()?.into_bytes());
     files["svg"] = json!(svg_file);
+    if let Some(plot) = g2_figure(&p, t) {
+        let g2_file = format!("{n}.g2.svg");
+        staged.add(g2_file.clone(), plot.svg()?.into_bytes());
+        files["g2_svg"] = json!(g2_file);
+    }
     let max_rel = max_relative_error(
         t.correlation
             .iter()
@@ -200,6 +205,45 @@ pub fn run(a: &G1Args) -> anyhow::Result<()> {
         );
     }
     finish(staged)
+}
+
+/// `g2(t) = 1 + beta |g1(t)|^2` of the first pairs as DCS users read it (Siegert, `beta = 1`:
+/// an instrument's `beta` scales `g2 - 1`), with error bars `2 |g1| se(|g1|)` from those of
+/// the `g1` figure; `None` without a zero lag (no `g1`).
+fn g2_figure(p: &Problem, t: &Temporal) -> Option<Figure> {
+    let g1 = t.g1.as_ref()?;
+    let nl = t.lags.len();
+    let z = t.lags.iter().position(|x| *x == 0.0)?;
+    let curves = (0..t.pairs.min(MAX_CURVES))
+        .map(|e| {
+            let c0 = t.correlation[e * nl + z].re;
+            let g = &g1[e * nl..(e + 1) * nl];
+            let se = &t.correlation_stderr[e * nl..(e + 1) * nl];
+            Curve {
+                label: format!("pair {e}"),
+                x: t.lags.clone(),
+                y: g.iter().map(|v| 1.0 + v.norm_sqr()).collect(),
+                err: g
+                    .iter()
+                    .zip(se)
+                    .map(|(v, s)| 2.0 * v.norm() * s.norm() / c0)
+                    .collect(),
+            }
+        })
+        .collect();
+    Some(Figure {
+        title: format!("{}: intensity correlation g2 (Siegert)", p.name),
+        subtitle: format!(
+            "g2(t) = 1 + beta |g1(t)|^2 with beta = 1 (a detector's beta scales g2 - 1); {} \
+             paths; error bars: 2 |g1| times one standard error of C(t) / C(0)",
+            t.paths
+        ),
+        x_label: "lag t".into(),
+        x_unit: Some(super::time_axis(p)),
+        x_log: true,
+        y_label: "g2(t)".into(),
+        curves,
+    })
 }
 
 /// `|g1(t)|` of the first pairs (or `|C(t)|` when there is no zero lag), with error bars of
