@@ -535,6 +535,14 @@ fn means(py: Python<'_>, p: &Problem) -> PyResult<(Vec<Complex64>, Option<String
         .ok_or_else(|| PyKeyboardInterrupt::new_err("the render was interrupted"))
 }
 
+/// The scene's declared units as `d["units"]`: `{"length": "cm" | None, "time": "s" | None}`.
+fn set_units(d: &Bound<'_, PyDict>, p: &Problem) -> PyResult<()> {
+    let u = PyDict::new(d.py());
+    u.set_item("length", p.units.length.map(|u| u.symbol))?;
+    u.set_item("time", p.units.time.map(|u| u.symbol))?;
+    d.set_item("units", u)
+}
+
 /// The arrays of an outcome, in the shapes and under the names of the binary's files.
 fn outcome_dict<'py>(py: Python<'py>, p: &Problem, o: &Outcome) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -673,6 +681,7 @@ fn g1<'py>(
         c16(py, &r.correlation_stderr, &shape)?,
     )?;
     d.set_item("lags", PyArray1::from_slice(py, &r.lags))?;
+    set_units(&d, p)?;
     d.set_item(
         "g1",
         r.g1.as_deref().map(|g| c16(py, g, &shape)).transpose()?,
@@ -731,6 +740,7 @@ fn map<'py>(
     d.set_item("map", c16(py, &r.correlation, &shape)?)?;
     d.set_item("map_stderr", c16(py, &r.correlation_stderr, &shape)?)?;
     d.set_item("lags", PyArray1::from_slice(py, &r.lags))?;
+    set_units(&d, p)?;
     let normalised = r
         .normalised
         .as_deref()
@@ -773,6 +783,7 @@ fn tracking<'py>(
         PyArray1::from_vec(py, r.normalised()).reshape(shape)?,
     )?;
     d.set_item("tracking_lags", PyArray1::from_slice(py, &r.lags))?;
+    set_units(&d, p)?;
     d.set_item("curves", PyTuple::new(py, temporal::TRACKING_CURVES)?)?;
     d.set_item("drift", PyTuple::new(py, r.drift)?)?;
     d.set_item("max_deviation", PyTuple::new(py, r.max_deviation)?)?;

@@ -163,3 +163,18 @@ def test_near_field_fields_equal_the_command_line(speckle_bin, tmp_path, threads
     same(tmp_path / "m" / "gaussian_grid.mean.npy", speckle.mean(speckle.load(scene)).mean)
     assert f.fields.shape == (4, 1, 12)
     assert np.all(np.isfinite(f.mean)) and np.all(f.mean != 0)
+
+
+def test_units_and_multi_tau_lags_reach_python():
+    """A scene's declared units come back with the temporal results and in `derived`; a
+    multi-tau lag grid (from a dict) gives the lags the command line lists."""
+    s = speckle.Scene.example("dcs", paths=2000)
+    assert s.derived["units"] == {"length": "cm", "time": "s"}
+    d = s.settings
+    d["motion"]["lags"] = {"multi_tau": {"first": 1e-6, "last": 8e-6, "per_octave": 2}}
+    r = speckle.g1(d)
+    assert r.units == {"length": "cm", "time": "s"}
+    assert list(r.lags) == [1e-6 * k for k in [0, 1, 2, 3, 4, 6, 8]]
+    d["motion"]["lags"] = {"multi_tau": {"first": 1e-6, "last": 8e-6, "per_octave": 0}}
+    with pytest.raises(speckle.SceneError, match="motion.lags.multi_tau.per_octave"):
+        speckle.g1(d)

@@ -411,6 +411,9 @@ class G1Result(Result):
     lags start at 0 and increase."""
     paths: int
     """Number of sampled paths."""
+    units: Dict[str, Optional[str]]
+    """The scene's declared units, ``{"length": "cm", "time": "s"}`` (``None`` where not
+    declared): the lags are in ``units["time"]``."""
 
 
 @dataclass(frozen=True)
@@ -484,6 +487,9 @@ class MapResult(Result):
     """``|C[0, k](t)| / C[0, 0](0)`` (float64), when a lag is 0."""
     paths: int
     """Number of sampled paths."""
+    units: Dict[str, Optional[str]]
+    """The scene's declared units, ``{"length": "cm", "time": "s"}`` (``None`` where not
+    declared): the lags are in ``units["time"]``."""
 
 
 @dataclass(frozen=True)
@@ -512,6 +518,9 @@ class TrackingResult(Result):
     smallest lag ``t0`` (0 when the lags include it)."""
     tracking_lags: np.ndarray
     """``(L,)`` float64, as in ``[motion]``."""
+    units: Dict[str, Optional[str]]
+    """The scene's declared units, ``{"length": "cm", "time": "s"}`` (``None`` where not
+    declared): the lags are in ``units["time"]``."""
     curves: Tuple[str, str, str]
     """The rows' names: ``("no tracking", "tracking", "U = 0")``."""
     drift: Tuple[float, float, float]
