@@ -167,18 +167,27 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     }
 }
 
-/// `sin[i], cos[i] = sin_cos(x[i])` for every `i` (vectorised).
+/// `sin[i], cos[i] = sin_cos(x[i])` for every `i` (vectorised for the CPU's widest vector
+/// instructions, chosen at run time; bitwise the same on every instruction set).
 ///
 /// # Panics
 /// If the three slices differ in length.
 pub fn sin_cos_slice(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     assert!(x.len() == sin.len() && x.len() == cos.len());
-    let mut out_of_range = false;
-    for ((x, s), c) in x.iter().zip(sin.iter_mut()).zip(cos.iter_mut()) {
-        (*s, *c) = sin_cos_reduced(*x);
-        out_of_range |= !in_sin_cos_range(*x);
+    struct Op<'a>(&'a [f64], &'a mut [f64], &'a mut [f64]);
+    impl pulp::WithSimd for Op<'_> {
+        type Output = bool;
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) -> bool {
+            let mut out_of_range = false;
+            for ((x, s), c) in self.0.iter().zip(self.1.iter_mut()).zip(self.2.iter_mut()) {
+                (*s, *c) = sin_cos_reduced(*x);
+                out_of_range |= !in_sin_cos_range(*x);
+            }
+            out_of_range
+        }
     }
-    if out_of_range {
+    if pulp::Arch::new().dispatch(Op(x, sin, cos)) {
         fix_sin_cos(x, sin, cos);
     }
 }
@@ -194,20 +203,50 @@ pub(crate) fn fix_sin_cos(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
     }
 }
 
-/// `y[i] = exp(x[i])` for every `i` (vectorised).
+/// `y[i] = exp(x[i])` for every `i` (vectorised for the CPU's widest vector instructions,
+/// chosen at run time; bitwise the same on every instruction set).
 ///
 /// # Panics
 /// If the slices differ in length.
 pub fn exp_slice(x: &[f64], y: &mut [f64]) {
     assert_eq!(x.len(), y.len());
-    for (x, y) in x.iter().zip(y.iter_mut()) {
-        *y = exp(*x);
+    struct Op<'a>(&'a [f64], &'a mut [f64]);
+    impl pulp::WithSimd for Op<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) {
+            for (x, y) in self.0.iter().zip(self.1.iter_mut()) {
+                *y = exp(*x);
+            }
+        }
     }
+    pulp::Arch::new().dispatch(Op(x, y));
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The dispatched slice kernels give bitwise the scalar functions' values.
+    #[test]
+    fn slices_are_bitwise_the_scalar_kernels() {
+        let mut next = uniform(17);
+        let x: Vec<f64> = (0..1000)
+            .map(|i| (next() - 0.5) * 1e3 * (i % 7) as f64)
+            .collect();
+        let (mut s, mut c, mut e) = (vec![0.0; 1000], vec![0.0; 1000], vec![0.0; 1000]);
+        sin_cos_slice(&x, &mut s, &mut c);
+        let small: Vec<f64> = x.iter().map(|v| v * 1e-1).collect();
+        exp_slice(&small, &mut e);
+        for i in 0..1000 {
+            let (si, ci) = sin_cos(x[i]);
+            assert_eq!(
+                (s[i].to_bits(), c[i].to_bits()),
+                (si.to_bits(), ci.to_bits())
+            );
+            assert_eq!(e[i].to_bits(), exp(small[i]).to_bits());
+        }
+    }
 
     use speckle_stats::rng::uniform_stream as uniform;
 

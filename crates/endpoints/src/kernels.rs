@@ -606,6 +606,68 @@ mod tests {
         (src, sen)
     }
 
+    /// The kernels dispatched at run time to the CPU's vector instructions give bitwise the
+    /// values of the same loops compiled for the baseline instruction set (what a portable build
+    /// without dispatch ran).
+    #[test]
+    fn dispatched_kernels_are_bitwise_the_baseline_loops() {
+        let b = Aabb::new(DVec3::new(-3.0, 1.0, -0.5), DVec3::new(5.0, 2.5, 4.0)).unwrap();
+        let m = HomogeneousBox::new(b, 0.7, 0.2).unwrap();
+        let g = BoxMedium::of(&m).unwrap();
+        let (src, sen) = endpoints(&b, false);
+        let mut next = uniform(3);
+        let mut checked = 0;
+        for set in [
+            Endpoints::sources(&m, 300.0, &src),
+            Endpoints::sensors(&m, 300.0, &sen),
+        ] {
+            let sign = match set.side {
+                Side::Source => -1.0,
+                Side::Sensor => 1.0,
+            };
+            for _ in 0..50 {
+                let x = m.bounds().lerp([next(), next(), next()]);
+                for run in &set.runs {
+                    let n = run.len;
+                    let mut a = vec![vec![0.0; n]; 5];
+                    let mut b = vec![vec![0.0; n]; 5];
+                    let (ok_a, ok_b) = match &run.kind {
+                        RunKind::Plane(f) => {
+                            let [ar, ai, ..] = &mut a[..] else {
+                                unreachable!()
+                            };
+                            let [br, bi, ..] = &mut b[..] else {
+                                unreachable!()
+                            };
+                            (f.connect(&g, x, ar, ai), f.connect_lanes(&g, x, br, bi))
+                        }
+                        RunKind::Point(p) => {
+                            let [ar, ai, ax, ay, az] = &mut a[..] else {
+                                unreachable!()
+                            };
+                            let [br, bi, bx, by, bz] = &mut b[..] else {
+                                unreachable!()
+                            };
+                            (
+                                p.connect::<true>(&g, 300.0, sign, x, ar, ai, [ax, ay, az]),
+                                p.connect_lanes::<true>(&g, 300.0, sign, x, br, bi, [bx, by, bz]),
+                            )
+                        }
+                        RunKind::Gaussian => continue,
+                    };
+                    assert_eq!(ok_a, ok_b);
+                    for (va, vb) in a.iter().zip(&b) {
+                        for (x, y) in va.iter().zip(vb) {
+                            assert_eq!(x.to_bits(), y.to_bits());
+                        }
+                    }
+                    checked += n;
+                }
+            }
+        }
+        assert_eq!(checked, 2 * 50 * 60);
+    }
+
     #[test]
     fn box_kernels_match_the_scalar_legs() {
         // A 3D box and a flatland rectangle, k L up to about 1e4.

@@ -67,8 +67,44 @@ impl Run {
 
     /// The kernel: `re + i im = exp(max_a(c_a q_a + r_a)) exp(i kappa . x)`. Returns false if a
     /// phase was out of the range of the vectorised `sin_cos`.
+    /// Compiled for the CPU's widest vector instructions, chosen at run time (`pulp`); bitwise
+    /// the same on every instruction set (no contraction into fused multiply-adds).
     #[inline(never)]
     pub(crate) fn connect(&self, g: &BoxMedium, x: DVec3, re: &mut [f64], im: &mut [f64]) -> bool {
+        // A generic `WithSimd` (not a closure) is monomorphised inside each instruction set's
+        // function, so the loop is inlined and vectorised there.
+        struct Op<'a> {
+            run: &'a Run,
+            g: &'a BoxMedium,
+            x: DVec3,
+            re: &'a mut [f64],
+            im: &'a mut [f64],
+        }
+        impl pulp::WithSimd for Op<'_> {
+            type Output = bool;
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _: S) -> bool {
+                self.run.connect_lanes(self.g, self.x, self.re, self.im)
+            }
+        }
+        pulp::Arch::new().dispatch(Op {
+            run: self,
+            g,
+            x,
+            re,
+            im,
+        })
+    }
+
+    /// The loop of [`Run::connect`], inlined into each instruction set's version.
+    #[inline(always)]
+    pub(crate) fn connect_lanes(
+        &self,
+        g: &BoxMedium,
+        x: DVec3,
+        re: &mut [f64],
+        im: &mut [f64],
+    ) -> bool {
         let n = re.len();
         let c = g.center - x;
         let (kx, ky, kz) = (&self.k[0][..n], &self.k[1][..n], &self.k[2][..n]);

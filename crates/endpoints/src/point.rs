@@ -76,9 +76,57 @@ impl Run {
     /// `exp(-sigma_t L / 2) spreading(r) exp(i k r)` (Eq. 13 with `1/r`, or `1/sqrt(r)` in
     /// flatland). `side` is `+1` for sensors (direction `p - x`), `-1` for sources (`x - p`).
     /// Returns false if a phase was out of the range of the vectorised `sin_cos`.
+    /// Compiled for the CPU's widest vector instructions, chosen at run time (`pulp`); bitwise
+    /// the same on every instruction set (no contraction into fused multiply-adds).
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn connect<const THREE: bool>(
+        &self,
+        g: &BoxMedium,
+        k: f64,
+        side: f64,
+        x: DVec3,
+        re: &mut [f64],
+        im: &mut [f64],
+        dir: [&mut [f64]; 3],
+    ) -> bool {
+        // A generic `WithSimd` (not a closure) is monomorphised inside each instruction set's
+        // function, so the loop is inlined and vectorised there.
+        struct Op<'a, const THREE: bool> {
+            run: &'a Run,
+            g: &'a BoxMedium,
+            k: f64,
+            side: f64,
+            x: DVec3,
+            re: &'a mut [f64],
+            im: &'a mut [f64],
+            dir: [&'a mut [f64]; 3],
+        }
+        impl<const THREE: bool> pulp::WithSimd for Op<'_, THREE> {
+            type Output = bool;
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _: S) -> bool {
+                let o = self;
+                o.run
+                    .connect_lanes::<THREE>(o.g, o.k, o.side, o.x, o.re, o.im, o.dir)
+            }
+        }
+        pulp::Arch::new().dispatch(Op::<THREE> {
+            run: self,
+            g,
+            k,
+            side,
+            x,
+            re,
+            im,
+            dir,
+        })
+    }
+
+    /// The loop of [`Run::connect`], inlined into each instruction set's version.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn connect_lanes<const THREE: bool>(
         &self,
         g: &BoxMedium,
         k: f64,
