@@ -241,6 +241,69 @@ fn tissue(paths: u64, seed: u64) -> (Vec<Complex64>, Vec<Complex64>) {
     (t.correlation, t.correlation_stderr)
 }
 
+/// A point detector 0.4 mm (4 optical depths) from the source on the isotropic cube, where single
+/// scattering is a large part: its single- and multiple-scattering parts and their total
+/// against the point sensor's (`render_intensity`), each within 4.5 combined standard errors.
+#[test]
+fn a_point_detector_splits_single_and_multiple_scattering_as_a_point_sensor() {
+    let (source, at) = (DVec3::new(-0.02, 0.0, 0.0), DVec3::new(0.02, 0.0, 0.0));
+    let sensor = Scene::new(
+        cube(),
+        Phase::Isotropic,
+        WAVELENGTH,
+        vec![Source::point(source)],
+        vec![Sensor::point(at)],
+        Pair::all(1, 1),
+    )
+    .unwrap();
+    let opts = |paths, seed| CovarianceOptions {
+        paths,
+        seed,
+        ..CovarianceOptions::default()
+    };
+    let s =
+        speckle::estimators::render_intensity(&sensor, &opts(400_000, 21), &NoProgress).unwrap();
+    let m = cube();
+    let point = Detector::point("sensors[0]", &m, at, 1.0, None, 1.0, Weighting::Fluence).unwrap();
+    let detector = Scene::with_detectors(
+        m,
+        vec![Phase::Isotropic],
+        WAVELENGTH,
+        vec![Source::point(source)],
+        vec![point],
+    )
+    .unwrap();
+    let d = render_detectors_with(
+        &detector,
+        None,
+        &opts(400_000, 22),
+        DetectorTechniques::default(),
+        &NoProgress,
+    )
+    .unwrap()
+    .unwrap();
+    let value = |m: &speckle::stats::MatrixEstimate| (m.value.get(0, 0), m.std_error.get(0, 0));
+    for (name, dm, sm) in [
+        ("single", &d.single, &s.single),
+        ("multiple", &d.multiple, &s.multiple),
+        ("total", &d.total, &s.total),
+    ] {
+        let ((dv, ds), (sv, ss)) = (value(dm), value(sm));
+        let zl = z(dv, ds, sv, ss);
+        println!(
+            "{name}: detector {:.5} +- {:.5}, sensor {:.5} +- {:.5}, z = {zl:.2}",
+            dv.re, ds.re, sv.re, ss.re
+        );
+        assert!(
+            ds.re < 0.05 * dv.re && ss.re < 0.05 * sv.re,
+            "{name} unresolved"
+        );
+        assert!(zl < 4.5, "{name}: {zl}");
+    }
+    // Single scattering is a sizeable part here (the test of the split).
+    assert!(value(&d.single).0.re > 0.05 * value(&d.total).0.re);
+}
+
 /// The tissue scene's cube and source with a point detector (fluence, full aperture) at `at` on
 /// its face instead of the fibre: `C(t)` and standard errors.
 fn tissue_point(at: DVec3, paths: u64, seed: u64) -> (Vec<Complex64>, Vec<Complex64>) {

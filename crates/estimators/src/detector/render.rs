@@ -73,11 +73,12 @@ struct Sink<'a, M: Medium, P> {
     /// The point detectors, by index, with their branch samplers (`None` where the medium
     /// next to the point does not attenuate: connections alone).
     points: &'a [(usize, Option<PointBranch>)],
-    /// The path's values, `J x L` correlations then `J x M` decay sums (see
-    /// [`DetectorEstimate::decay`]), whether it registered, and whether by single scattering.
-    values: Vec<Complex64>,
-    registered: bool,
-    single: bool,
+    /// The path's values by part (0: single scattering, a registration of `x1` alone; 1:
+    /// multiple), each `J x L` correlations then `J x M` decay sums (see
+    /// [`DetectorEstimate::decay`]), and whether the path registered in each part (a path
+    /// that reaches a point detector from `x1` and from later vertices has both).
+    values: [Vec<Complex64>; 2],
+    registered: [bool; 2],
     /// Whether the path's contributions are recorded, the pairs whose contributions are, and
     /// the path's records so far.
     record: bool,
@@ -143,25 +144,25 @@ impl<'a, M: Medium, P: PhaseFunction> Sink<'a, M, P> {
         let y = self.path.y + y_last + self.path.first.diffusion * q1.length_squared();
         let q = self.path.q + q_last + q1.dot(self.path.first.drift);
         let w = weight * self.share;
+        let part = usize::from(!single);
         let pair = self.source * nd + d;
         let base = pair * nl;
         for (l, &t) in self.lags.iter().enumerate() {
-            self.values[base + l] +=
+            self.values[part][base + l] +=
                 w * Complex64::from_polar((-k2 * t.abs() * y).exp(), self.k * t * q);
         }
         // The Brownian decay sums per material: the interior ones, the first and last vertices'.
         let nm = self.path.y_material.len();
         let decay = self.scene.len() * nl + pair * nm;
         for (m, ym) in self.path.y_material.iter().enumerate() {
-            self.values[decay + m] += Complex64::from(w * ym);
+            self.values[part][decay + m] += Complex64::from(w * ym);
         }
-        self.values[decay + self.path.material1] +=
+        self.values[part][decay + self.path.material1] +=
             Complex64::from(w * self.path.first.diffusion * q1.length_squared());
         if !single {
-            self.values[decay + self.path.material] += Complex64::from(w * y_last);
+            self.values[part][decay + self.path.material] += Complex64::from(w * y_last);
         }
-        self.registered = true;
-        self.single = single;
+        self.registered[part] = true;
         if self.record && self.keep[pair] {
             self.records.push(Record {
                 path: 0,
@@ -539,9 +540,11 @@ where
             transfers: vec![0.0; if record { nm * PER_MATERIAL } else { 0 }],
             ..PathState::default()
         },
-        values: vec![Complex64::ZERO; j * (nl + nm)],
-        registered: false,
-        single: false,
+        values: [
+            vec![Complex64::ZERO; j * (nl + nm)],
+            vec![Complex64::ZERO; j * (nl + nm)],
+        ],
+        registered: [false; 2],
         record,
         keep: keep.clone(),
         records: vec![],
@@ -570,11 +573,15 @@ where
             &mut rng,
             sink,
         );
-        if sink.registered {
+        if sink.registered.iter().any(|r| *r) {
             // Part 0: single scattering, part 1: multiple.
-            sums[usize::from(!sink.single)].push_values(&sink.values, Complex64::ONE);
-            sink.values.fill(Complex64::ZERO);
-            sink.registered = false;
+            for part in 0..2 {
+                if sink.registered[part] {
+                    sums[part].push_values(&sink.values[part], Complex64::ONE);
+                    sink.values[part].fill(Complex64::ZERO);
+                    sink.registered[part] = false;
+                }
+            }
             registered.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         if !sink.records.is_empty() {
