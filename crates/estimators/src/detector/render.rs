@@ -575,11 +575,15 @@ where
         );
         if sink.registered.iter().any(|r| *r) {
             // Part 0: single scattering, part 1: multiple.
-            for part in 0..2 {
-                if sink.registered[part] {
-                    sums[part].push_values(&sink.values[part], Complex64::ONE);
-                    sink.values[part].fill(Complex64::ZERO);
-                    sink.registered[part] = false;
+            let parts = sums
+                .iter_mut()
+                .zip(&mut sink.values)
+                .zip(&mut sink.registered);
+            for ((sum, values), registered) in parts {
+                if *registered {
+                    sum.push_values(values, Complex64::ONE);
+                    values.fill(Complex64::ZERO);
+                    *registered = false;
                 }
             }
             registered.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
