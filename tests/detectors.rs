@@ -121,76 +121,69 @@ fn a_fluence_detector_reads_the_disc_average_of_point_sensors() {
         Weighting::Fluence,
     )
     .unwrap();
+    let runs = [
+        (DetectorTechniques::Exit, 10_000_000),
+        (DetectorTechniques::ExitAndNextEvent, 2_000_000),
+        (DetectorTechniques::ExitNextEventAndSplitting, 1_000_000),
+    ];
+    against(det, &runs, 12, (&model, &lags), &average);
+    // A point detector at the centre reads what the point sensor there reads.
+    let centre: Vec<_> = {
+        let (v, s) = est.curve(0);
+        v.into_iter().zip(s).collect()
+    };
+    let point = Detector::point(
+        "detector",
+        &cube(),
+        CENTRE,
+        1.0,
+        None,
+        1.0,
+        Weighting::Fluence,
+    )
+    .unwrap();
+    let runs = [
+        (DetectorTechniques::ExitAndNextEvent, 1_000_000),
+        (DetectorTechniques::ExitNextEventAndSplitting, 300_000),
+    ];
+    let scene = against(point, &runs, 13, (&model, &lags), &centre);
+    // The exit technique alone cannot read a point.
+    let e = render_detectors_with(&scene, None, &opts, DetectorTechniques::Exit, &NoProgress);
+    assert!(e.unwrap_err().to_string().contains("sensors[0]"));
+}
+
+/// Renders `det` on the cube (isotropic scatterers, the point source at `SOURCE`) with each of
+/// `runs` (techniques, paths) and compares its curve with `reference` lag by lag; returns the
+/// scene.
+fn against(
+    det: Detector,
+    runs: &[(DetectorTechniques, u64)],
+    seed: u64,
+    (model, lags): (&MotionModel, &[f64]),
+    reference: &[(Complex64, Complex64)],
+) -> Scene<HomogeneousBox, Phase> {
     let scene = Scene::with_detectors(
-        m,
+        cube(),
         vec![Phase::Isotropic],
         WAVELENGTH,
         vec![Source::point(SOURCE)],
         vec![det],
     )
     .unwrap();
-    for (techniques, paths) in [
-        (DetectorTechniques::Exit, 10_000_000),
-        (DetectorTechniques::ExitAndNextEvent, 2_000_000),
-        (DetectorTechniques::ExitNextEventAndSplitting, 1_000_000),
-    ] {
+    for &(techniques, paths) in runs {
         let opts = CovarianceOptions {
             paths,
-            seed: 12,
+            seed,
             ..CovarianceOptions::default()
         };
-        let d = render_detectors_with(
-            &scene,
-            Some((&model, &lags)),
-            &opts,
-            techniques,
-            &NoProgress,
-        )
-        .unwrap()
-        .unwrap();
-        println!("{techniques:?}, {paths} paths:");
-        compare(&d.curve(0), &average, &lags);
+        let motion = Some((model, lags));
+        let d = render_detectors_with(&scene, motion, &opts, techniques, &NoProgress)
+            .unwrap()
+            .unwrap();
+        println!("{:?}, {techniques:?}, {paths} paths:", det.radius());
+        compare(&d.curve(0), reference, lags);
     }
-    // A point detector at the centre reads what the point sensor there reads.
-    let centre: Vec<_> = {
-        let (v, s) = est.curve(0);
-        v.into_iter().zip(s).collect()
-    };
-    let m = cube();
-    let point =
-        Detector::point("detector", &m, CENTRE, 1.0, None, 1.0, Weighting::Fluence).unwrap();
-    let scene = Scene::with_detectors(
-        m,
-        vec![Phase::Isotropic],
-        WAVELENGTH,
-        vec![Source::point(SOURCE)],
-        vec![point],
-    )
-    .unwrap();
-    for (techniques, paths) in [
-        (DetectorTechniques::ExitAndNextEvent, 1_000_000),
-        (DetectorTechniques::ExitNextEventAndSplitting, 300_000),
-    ] {
-        let opts = CovarianceOptions {
-            paths,
-            seed: 13,
-            ..CovarianceOptions::default()
-        };
-        let d = render_detectors_with(
-            &scene,
-            Some((&model, &lags)),
-            &opts,
-            techniques,
-            &NoProgress,
-        )
-        .unwrap()
-        .unwrap();
-        println!("point detector, {techniques:?}, {paths} paths:");
-        compare(&d.curve(0), &centre, &lags);
-    }
-    // The exit technique alone cannot read a point.
-    let e = render_detectors_with(&scene, None, &opts, DetectorTechniques::Exit, &NoProgress);
-    assert!(e.unwrap_err().to_string().contains("sensors[0]"));
+    scene
 }
 
 /// The detector's curve against the points' average, lag by lag.
