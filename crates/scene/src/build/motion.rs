@@ -118,8 +118,9 @@ pub const MAX_PER_OCTAVE: u32 = 64;
 /// The lags of a multi-tau grid ([`MultiTauSpec`]): 0, then `k first` for `k = 1 .. 2 P`, then
 /// for each octave `j = 1, 2, ..` the `P` lags `2^j first (P + m)`, `m = 1 .. P`, while they do
 /// not exceed `last` (each lag one product of `first` and an integer, so a list of the same
-/// numbers gives bitwise the same render). Errors name `motion.lags.multi_tau.*`, and a grid of
-/// more than [`MAX_LAGS`] lags is refused before it is built.
+/// numbers gives bitwise the same render). Errors name `motion.lags.multi_tau.*`. With the
+/// limits on `per_octave` and `last / first` a grid has at most `1 + 2 P + 50 P = 3 329` lags,
+/// within [`MAX_LAGS`] (the count is still checked as the grid grows).
 pub fn multi_tau_lags(spec: &MultiTauSpec) -> Result<Vec<f64>, SceneError> {
     let field = |k: &str| format!("motion.lags.multi_tau.{k}");
     let (first, last, p) = (spec.first, spec.last, spec.per_octave);
