@@ -338,13 +338,12 @@ impl Ticks {
                 }
             }
             None => {
-                let v = x * self.factor;
-                let v = if v.abs() < 1e-12 * self.factor.abs().max(1.0) {
-                    0.0
-                } else {
-                    v
-                };
-                format!("{v:.*}", self.decimals)
+                let text = format!("{:.*}", self.decimals, x * self.factor);
+                // A tick at zero computed as -1e-21 prints as zero, unsigned.
+                match text.strip_prefix('-') {
+                    Some(t) if t.chars().all(|c| c == '0' || c == '.') => t.to_string(),
+                    _ => text,
+                }
             }
         }
     }
@@ -420,6 +419,7 @@ mod tests {
         let t = Ticks::new(&f, false, (x0, x1));
         assert_eq!(t.label, "lag t (us)");
         assert_eq!(t.format(1.5e-5), "15.0");
+        assert_eq!(t.format(-1e-21), "0.0");
         // Logarithmic over three decades, ticks with prefixes.
         let f = figure(vec![0.0, 1e-7, 1e-6, 1e-4], seconds(), true);
         assert!(f.log_axis());
