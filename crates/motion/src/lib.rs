@@ -17,6 +17,9 @@
 //!   `Q^U`) that any tracer keeps along its paths in plain data, so that
 //!   every lag is evaluated from the same traced path (the project's tracer keeps it through
 //!   `speckle_estimators::MotionFactor`).
+//! - [`EndDisplacement`] and [`segment_phase`]: where the two copies of a path connect their
+//!   end vertices at a lag (the exact drift of every endpoint, and the sampled Brownian
+//!   displacements of endpoints with no single leg direction, focused Gaussian beams).
 //! - [`correlation`]: `g1`, `g2 = 1 + beta |g1|^2` (Siegert) and the speckle contrast `K(T)`
 //!   over an exposure `T`; [`diffusion`]: the correlation diffusion equation of Eq. 35.
 //!
@@ -50,9 +53,11 @@
 
 pub mod correlation;
 pub mod diffusion;
+mod ends;
 mod gamma;
 mod state;
 
+pub use ends::{EndDisplacement, segment_phase};
 pub use gamma::{
     first_transfer, gamma, interior_transfer, last_transfer, sensor_gradient, single_transfer,
     source_gradient,

@@ -33,7 +33,9 @@
 //! and `z_b` for each later one (from a stream of their own, `BROWNIAN_KEY`), and at lag `t`
 //! copy 1 connects from `x - Delta/2`, copy 2 from `x + Delta/2`, `Delta = t U + sqrt(2 D |t|) z`,
 //! with the exact connections there (as drift is), times the shared segments' first-order
-//! phase `exp(i k (w_1 . Delta_1 - w_in . Delta_b))` (Brownian parts only). Its expectation
+//! phase `exp(i k (w_1 . Delta_1 - w_in . Delta_b))` (Brownian parts only;
+//! [`speckle_motion::EndDisplacement`] and [`speckle_motion::segment_phase`], the same in plain
+//! data for an outside tracer). Its expectation
 //! over `z` is the exact Gaussian average at the end vertices; interior vertices keep the
 //! closed form. Lags are then connected one by one (no powers).
 //!
@@ -68,7 +70,7 @@ use glam::DVec3;
 use num_complex::Complex64;
 use sink::*;
 use speckle_medium::Medium;
-use speckle_motion::{MotionModel, MotionState};
+use speckle_motion::{EndDisplacement, Motion, MotionModel, MotionState, segment_phase};
 use speckle_paths::{PathRng, Vertex, VertexSink};
 use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;

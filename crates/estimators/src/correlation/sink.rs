@@ -106,21 +106,15 @@ pub(super) struct CorrelationSink<'a, 's, 'p, M, P> {
 }
 
 impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
-    /// The displacement of a vertex with drift `u` for copy `side` at lag `l`.
+    /// The displacement at lag `l` of an end vertex moving with `m`, whose Brownian part (when
+    /// sampled) comes from the standard normal vector `z`.
     #[inline]
-    pub(super) fn shift(&self, l: usize, side: usize, u: DVec3) -> DVec3 {
-        let sign = if side == 0 { -0.5 } else { 0.5 };
-        sign * self.plan.lags[l] * u
-    }
-
-    /// The sampled Brownian displacement `sqrt(2 D |t|) z` at lag `l` of a vertex with
-    /// diffusion coefficient `d` and standard normal vector `z` (zero unless sampled).
-    #[inline]
-    pub(super) fn brownian(&self, l: usize, d: f64, z: DVec3) -> DVec3 {
+    pub(super) fn end(&self, l: usize, m: &Motion, z: DVec3) -> EndDisplacement {
+        let t = self.plan.lags[l];
         if self.plan.sampled {
-            (2.0 * d * self.plan.lags[l].abs()).sqrt() * z
+            EndDisplacement::sampled(m, t, z)
         } else {
-            DVec3::ZERO
+            EndDisplacement::drift(m, t)
         }
     }
 
@@ -132,12 +126,13 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         DVec3::new(a, b, if self.plan.flat { 0.0 } else { c })
     }
 
-    /// Whether the vertex `x` moving with drift `u` lies in the medium at both times of lag
-    /// `l`.
+    /// Whether the vertex `x` moving with `m` lies in the medium at both times of lag `l`
+    /// (its drift; Brownian displacements are not tested against the box).
     #[inline]
-    pub(super) fn stays(&self, l: usize, x: DVec3, u: DVec3) -> bool {
+    pub(super) fn stays(&self, l: usize, x: DVec3, m: &Motion) -> bool {
         let b = self.scene.medium().bounds();
-        b.contains(x + self.shift(l, 0, u)) && b.contains(x + self.shift(l, 1, u))
+        let drift = EndDisplacement::drift(m, self.plan.lags[l]);
+        b.contains(drift.copy(x, 0)) && b.contains(drift.copy(x, 1))
     }
 
     /// Whether the connector's legs are needed: for the zero lags, and for every lag when
@@ -475,13 +470,12 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             self.s.z1 = self.normal();
         }
         if self.plan.displaced {
-            let (u, d) = (self.s.state.first.drift, self.s.state.first.diffusion);
+            let m = self.s.state.first;
             for l in 0..self.plan.lags.len() {
-                self.s.inside[l] = self.stays(l, x1, u);
-                let brownian = self.brownian(l, d, self.s.z1);
+                self.s.inside[l] = self.stays(l, x1, &m);
+                let end = self.end(l, &m, self.s.z1);
                 for side in 0..2 {
-                    let sign = if side == 0 { -0.5 } else { 0.5 };
-                    let x = x1 + self.shift(l, side, u) + sign * brownian;
+                    let x = end.copy(x1, side);
                     let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
                     self.s.ends[2 * l + side].start(src, sen, x);
                 }
@@ -544,13 +538,12 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             self.s.zb = self.normal();
         }
         if self.plan.displaced {
-            let (u, d) = (self.s.state.here.drift, self.s.state.here.diffusion);
+            let m = self.s.state.here;
             for l in 0..self.plan.lags.len() {
-                self.s.inside[l] = self.s.inside[l] && self.stays(l, v.x, u);
-                let brownian = self.brownian(l, d, self.s.zb);
+                self.s.inside[l] = self.s.inside[l] && self.stays(l, v.x, &m);
+                let end = self.end(l, &m, self.s.zb);
                 for side in 0..2 {
-                    let sign = if side == 0 { -0.5 } else { 0.5 };
-                    let x = v.x + self.shift(l, side, u) + sign * brownian;
+                    let x = end.copy(v.x, side);
                     let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
                     self.s.ends[2 * l + side].at(src, sen, phase, x, w_in, self.coherence);
                 }
@@ -589,10 +582,9 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             let mut w = self.s.state.interior(k, self.plan.lags[l]) * weight;
             if self.plan.sampled {
                 // The shared first and last segments' change with the sampled displacements.
-                let d1 = self.brownian(l, self.s.state.first.diffusion, self.s.z1);
-                let db = self.brownian(l, self.s.state.here.diffusion, self.s.zb);
-                let w1 = self.s.state.w1;
-                w *= Complex64::from_polar(1.0, k * (w1.dot(d1) - w_in.dot(db)));
+                let first = self.end(l, &self.s.state.first, self.s.z1);
+                let last = self.end(l, &self.s.state.here, self.s.zb);
+                w *= segment_phase(k, self.s.state.w1, &first, w_in, &last);
             }
             self.push_lag(2 * l + 1, l, w);
         }
