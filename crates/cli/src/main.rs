@@ -136,6 +136,12 @@ enum Command {
     /// beams; reads a study file of its own (`scenes/fig13_refocus.toml`) and writes
     /// `<name>.refocus*.npy`, a JSON sidecar and an SVG plot.
     Refocus(refocus::Args),
+    /// Seeing through scattering (Katz et al. 2014; Bar et al. 2019, Fig. 13): speckle images
+    /// of an object of incoherent illuminators behind a slab, their autocorrelation against the
+    /// object's, and the object recovered by phase retrieval (HIO and error reduction); reads a
+    /// study file of its own (`scenes/fig13_seeing_through.toml`) and writes
+    /// `<name>.*.npy`, a JSON sidecar and a PNG mosaic.
+    SeeingThrough(seeing_through::Args),
     /// The near field against the brute force (Bar et al. 2020, Fig. 7, Tables 1-2): the
     /// closed-form aperture connections of Gaussian beams against the aperture integral of
     /// far-field per-path fields (Eqs. 9-11) in flatland, entry by entry, and the time for the
@@ -178,6 +184,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::MemoryTilt(a) => memory_tilt::run(&a),
         Command::TiltShift(a) => tilt_shift::run(&a),
         Command::Refocus(a) => refocus::run(&a),
+        Command::SeeingThrough(a) => seeing_through::run(&a),
         Command::Bruteforce(a) => bruteforce::run(&a),
         Command::SamplingGain(a) => sampling_gain::run(&a),
         Command::Merge(a) => merge::run(&a),

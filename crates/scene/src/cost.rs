@@ -213,6 +213,12 @@ pub fn covariance_seconds(paths: f64, vertices: f64, legs: f64, pairs: f64) -> f
     paths * vertices * (VERTEX_S + legs * LEG_S + pairs * PAIR_S + 0.5 * pairs * pairs * MAC_S)
 }
 
+/// Rough seconds of `paths` sampled field paths (Alg. 2) of `vertices` vertices each, connected
+/// to `legs` endpoints and updating `pairs` fields, on one thread of the reference machine.
+pub fn field_seconds(paths: f64, vertices: f64, legs: f64, pairs: f64) -> f64 {
+    paths * vertices * (VERTEX_S + legs * LEG_S + pairs * PAIR_S)
+}
+
 /// Bytes and rough seconds per vertex of a correlation render of `j` entries at `lags` lags
 /// with `legs` endpoints: per lag, three estimates of every entry and the batches in flight;
 /// with drift (or Gaussian beams) both copies of every lag connect to every endpoint at both end

@@ -16,6 +16,8 @@
 //! - [`curves`]: a generic figure of curves with error bars (the `speckle g1` plot);
 //! - [`shaping`]: dynamic wavefront shaping on sampled transmission-matrix sequences (Bar et
 //!   al. 2023, Fig. 10);
+//! - [`seeing`]: seeing through scattering (Katz et al. 2014; Bar et al. 2019, Fig. 13):
+//!   sampled speckle images of a hidden object, their autocorrelation and phase retrieval;
 //! - [`examples`]: the embedded study files of both panels of Fig. 11.
 //!
 //! Design decision: a study is a library, not a command: its schema, validation, band
@@ -33,6 +35,7 @@ pub mod examples;
 pub mod memory;
 pub mod nearfield;
 pub mod plot;
+pub mod seeing;
 pub mod shaping;
 
 /// Errors of a study.

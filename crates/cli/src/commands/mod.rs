@@ -20,6 +20,7 @@ pub mod merge;
 pub mod mie;
 pub mod refocus;
 pub mod sampling_gain;
+pub mod seeing_through;
 pub mod shaping;
 pub mod single;
 pub mod tilt_shift;
