@@ -62,6 +62,7 @@ pub use render::{
     Array, Band, Curve, DENSE_VOLUME_FRACTION, LAYOUT, MAX_OPTICAL_DEPTH, MILNE_ZE, MemorySpectrum,
     Wavelength, check_finite, eq39,
 };
+pub(crate) use render::{slab_tracer, slab_tracer_json};
 pub use study::{
     Density, MAX_ANGLES, MAX_WAVELENGTHS, Study, StudyFile, StudyOutput, StudyOverrides,
     StudyRender, load_file, load_str,

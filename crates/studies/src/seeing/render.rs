@@ -5,12 +5,11 @@
 use super::SeeingStudy;
 use super::retrieval::{Retrieval, autocorrelation, crop, retrieve, similarity};
 use crate::StudyError;
-use crate::memory::Array;
+use crate::memory::{Array, slab_tracer, slab_tracer_json};
 use serde_json::{Value, json};
 use speckle_endpoints::{Pair, Sensor, Source};
 use speckle_estimators::{Coherence, EstimatorError, FieldOptions, Progress, Scene, render_fields};
 use speckle_medium::{Aabb, DVec3, HomogeneousBox};
-use speckle_paths::{FirstDirection, FirstVertex, TracerConfig};
 use speckle_phase::Phase;
 use speckle_stats::rng::derive_seed;
 use std::fmt::Write as _;
@@ -193,13 +192,7 @@ impl SeeingStudy {
                     seed: derive_seed(f.render.seed, (ci * f.realizations + r) as u64),
                     coherence: Coherence::ForwardOnly,
                     add_mean: false,
-                    sampling: TracerConfig {
-                        first_vertex: FirstVertex::ExponentialDepth {
-                            direction: DVec3::Z,
-                        },
-                        first_direction: FirstDirection::Phase { axis: DVec3::Z },
-                        ..TracerConfig::default()
-                    },
+                    sampling: slab_tracer(Coherence::ForwardOnly),
                 };
                 let est = render_fields(&scene, &o, progress)?;
                 let pattern = |p: usize| -> Vec<f64> {
@@ -476,7 +469,7 @@ impl SeeingThrough {
         t
     }
 
-    /// The sidecar (without `files`, which the caller adds).
+    /// The sidecar, with `files` (what the caller wrote, by key).
     pub fn describe(&self, s: &SeeingStudy, files: Value, threads: usize) -> Value {
         json!({
             "command": "seeing-through",
@@ -496,9 +489,9 @@ impl SeeingThrough {
                 "seed": s.file.render.seed,
                 "realization_seeds": "realization r of case c renders with \
                                       derive_seed(render.seed, c realizations + r)",
-                "estimator": "render_fields (Alg. 2), forward paths, the first vertex \
-                              exponential in depth and its direction from the phase function; \
-                              mean (ballistic) field left out",
+                "estimator": "render_fields (Alg. 2), forward paths, the mean (ballistic) \
+                              field left out",
+                "tracer": slab_tracer_json(Coherence::ForwardOnly),
                 "threads": threads,
                 "wall_time_s": self.wall,
             },
