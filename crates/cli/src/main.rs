@@ -154,6 +154,12 @@ enum Command {
     /// (`scenes/fig9_sampling_gain.toml`) and writes `<name>.sampling*.npy`, a JSON sidecar and
     /// one SVG plot per case.
     SamplingGain(sampling_gain::Args),
+    /// Electric-field Monte Carlo (Xu 2004, Sawicki et al. 2008), the baseline of Bar et al.
+    /// 2019 (Figs. 9 and 12): light tracing with the path length as phase, each photon scored by
+    /// the far-field sensors around its exit direction; intensities (with coherent
+    /// backscattering) and field realizations without spatial correlation. Plane-wave sources
+    /// and far-field sensors, 3D.
+    Emc(emc::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -187,6 +193,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::SeeingThrough(a) => seeing_through::run(&a),
         Command::Bruteforce(a) => bruteforce::run(&a),
         Command::SamplingGain(a) => sampling_gain::run(&a),
+        Command::Emc(a) => emc::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

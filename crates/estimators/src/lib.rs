@@ -48,6 +48,7 @@ mod connect;
 mod correlation;
 mod covariance;
 mod detector;
+mod emc;
 mod field_sequences;
 mod fields;
 mod lag_powers;
@@ -67,6 +68,7 @@ pub use detector::{
     detector_vertices_per_path, render_detector_records, render_detectors, render_detectors_shard,
     render_detectors_with,
 };
+pub use emc::{EmcEstimate, EmcOptions, render_emc};
 pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };

@@ -5,6 +5,7 @@ pub mod bruteforce;
 pub mod check;
 pub mod covariance;
 pub mod demo;
+pub mod emc;
 pub mod example;
 pub mod field_sequence;
 pub mod fields;
