@@ -17,6 +17,8 @@
 //! - [`scene`]: the problem description: the scene file format, its validation and builders,
 //!   a validated scene;
 //! - [`estimators`]: speckle mean, covariance and field estimators;
+//! - [`frequency`]: frequency analysis of light transport (Belcour et al. 2014): spectral
+//!   covariances along paths;
 //! - [`wave`]: the exact multiple-scattering reference solver (Foldy-Lax equations for point
 //!   scatterers, averaged over random configurations);
 //! - [`runs`]: renders of a loaded problem, whole or as shards, shard files and their exact
@@ -29,6 +31,7 @@
 
 pub use speckle_endpoints as endpoints;
 pub use speckle_estimators as estimators;
+pub use speckle_frequency as frequency;
 pub use speckle_inverse as inverse;
 pub use speckle_medium as medium;
 pub use speckle_motion as motion;
