@@ -160,6 +160,11 @@ enum Command {
     /// backscattering) and field realizations without spatial correlation. Plane-wave sources
     /// and far-field sensors, 3D.
     Emc(emc::Args),
+    /// Predictions before rendering, from a pilot of one pair (a plane-wave source and a
+    /// far-field sensor): its intensity and the paths a target error needs, the memory-effect
+    /// range and the speckle grain (Gaussian from where paths enter and leave, and the pilot's
+    /// own correlation curves), and the sensor spacing and tilts they suggest. Writes nothing.
+    Plan(plan::Args),
     /// Merge the shards of a run (`--shard I/N`) into exactly the single run's outputs.
     Merge(merge::Args),
     /// Parse and validate a scene and print a summary; renders nothing.
@@ -194,6 +199,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bruteforce(a) => bruteforce::run(&a),
         Command::SamplingGain(a) => sampling_gain::run(&a),
         Command::Emc(a) => emc::run(&a),
+        Command::Plan(a) => plan::run(&a),
         Command::Merge(a) => merge::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Example(a) => example::run(&a),

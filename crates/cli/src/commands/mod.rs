@@ -19,6 +19,7 @@ pub mod memory_spectrum;
 pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
+pub mod plan;
 pub mod refocus;
 pub mod sampling_gain;
 pub mod seeing_through;
