@@ -33,7 +33,7 @@ fn plan_reports_and_refuses() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o) + &stderr(&o);
     for want in [
-        "pilot of 2000 paths",
+        "pilots of 2000 paths",
         "paths for 1%",
         "memory effect",
         "speckle grain",
@@ -41,11 +41,29 @@ fn plan_reports_and_refuses() {
     ] {
         assert!(out.contains(want), "{want}: {out}");
     }
-    // Pair 1 has a point sensor; pair 5 does not exist.
-    for (pair, field) in [("1", "--pair 1"), ("5", "--pair")] {
-        let o = speckle(d, &["plan", "p.toml", "--paths", "2000", "--pair", pair]);
-        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-        assert!(stderr(&o).contains(field), "{}", stderr(&o));
-    }
+    // Pair 1 has a point sensor: its intensity only; pair 5 does not exist.
+    let o = speckle(d, &["plan", "p.toml", "--paths", "2000", "--pair", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o) + &stderr(&o);
+    assert!(
+        out.contains("paths for 1%") && out.contains("pair 1 has other kinds"),
+        "{out}"
+    );
+    let o = speckle(d, &["plan", "p.toml", "--paths", "2000", "--pair", "5"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--pair"), "{}", stderr(&o));
+    // With [motion]: the pilot's decorrelation time.
+    write(
+        d,
+        "m.toml",
+        &format!("{SCENE}[motion]\ndiffusion = 0.01\nlags = [0.0, 0.1, 0.3, 1.0, 3.0, 10.0]\n"),
+    );
+    let o = speckle(d, &["plan", "m.toml", "--paths", "2000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o) + &stderr(&o);
+    assert!(
+        out.contains("tau_c") || out.contains("stays above 1/e"),
+        "{out}"
+    );
     assert!(!d.join("out").exists(), "plan writes nothing");
 }

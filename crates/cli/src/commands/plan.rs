@@ -2,11 +2,16 @@
 //! (`speckle::estimators::render_plan`, `pilot_correlation`): its intensity and the paths a
 //! target error needs, the memory-effect range and the speckle grain (Gaussian from the
 //! weighted second moments of where paths enter and leave, and the pilot's own correlation
-//! curve), and the sensor spacing and tilts they suggest. Prints; writes nothing.
+//! curve) for a plane-wave source and a far-field sensor, with `[motion]` the pilot's `|g1|` and
+//! its decorrelation time, and the sensor spacing, tilts and lags they suggest. Prints; writes
+//! nothing.
 
 use super::*;
 use crate::error;
-use speckle::estimators::{crossing, pilot_correlation, render_plan};
+use speckle::estimators::{
+    CovarianceOptions, Entries, NoProgress, Sensor, Source, crossing, pilot_correlation,
+    render_correlation, render_intensity, render_plan,
+};
 use speckle::medium::DVec3;
 
 /// Arguments of `plan`.
@@ -45,79 +50,99 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let mut o = speckle::runs::covariance_options(&p);
     o.paths = a.paths.unwrap_or(o.paths.min(20_000)).max(2);
-    let scene = &p.scene;
-    let pair = scene.pairs()[a.pair];
-    let (i, v) = match (scene.sources()[pair.source], scene.sensors()[pair.sensor]) {
-        (
-            speckle::estimators::Source::PlaneWave { direction: i },
-            speckle::estimators::Sensor::FarField { direction: v },
-        ) => (i, v),
+    let start = std::time::Instant::now();
+    let n = &p.name;
+    say!(
+        "{n}: plan for pair {} (pilots of {} paths)",
+        a.pair,
+        o.paths
+    );
+    let pair = p.scene.pairs()[a.pair];
+    match (
+        p.scene.sources()[pair.source],
+        p.scene.sensors()[pair.sensor],
+    ) {
+        (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
+            speckle_and_grain(&p, a.pair, &o, i, v)?
+        }
         _ => {
-            return Err(InputError(format!(
-                "--pair {}: plan predicts for a plane-wave source and a far-field sensor",
+            if p.scene.has_detectors() {
+                say!("  a scene with detectors: `speckle intensity` reports their errors");
+            } else {
+                let e = render_intensity(&p.scene, &o, &NoProgress).map_err(error::estimator)?;
+                let (c, se) = (
+                    e.total.value.get(a.pair, 0).re,
+                    e.total.std_error.get(a.pair, 0).re,
+                );
+                intensity_lines(c, se, o.paths);
+            }
+            say!(
+                "  memory effect and grain: predicted for a plane-wave source and a far-field \
+                 sensor; pair {} has other kinds",
                 a.pair
-            ))
-            .into());
+            );
+        }
+    }
+    if p.motion.is_some() {
+        temporal(&p, a.pair, &o)?;
+    }
+    say!("{n}: planned in {:.1} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The intensity's relative error and the paths for 1% and 5%.
+fn intensity_lines(c: f64, se: f64, paths: u64) {
+    let r = se / c.abs();
+    say!(
+        "  intensity C[j, j] = {c:.6e} +- {se:.2e} ({:.2}%)",
+        100.0 * r
+    );
+    let need = |t: f64| paths as f64 * (r / t).powi(2);
+    say!(
+        "  paths for 1% / 5%: {:.3e} / {:.3e}",
+        need(0.01),
+        need(0.05)
+    );
+}
+
+/// The memory effect and the grain of a plane-wave / far-field pair.
+fn speckle_and_grain(
+    p: &Problem,
+    j: usize,
+    o: &CovarianceOptions,
+    i: DVec3,
+    v: DVec3,
+) -> anyhow::Result<()> {
+    let scene = &p.scene;
+    let plan = render_plan(scene, j, o, &NoProgress).map_err(error::estimator)?;
+    let flat = p.dimension() == speckle::phase::Dimension::Two;
+    let axes = |d: DVec3| {
+        if flat {
+            let e = DVec3::new(-d.y, d.x, 0.0);
+            (e, e)
+        } else {
+            d.any_orthonormal_pair()
         }
     };
-    let start = std::time::Instant::now();
-    let plan = render_plan(scene, a.pair, &o, &speckle::estimators::NoProgress)
-        .map_err(error::estimator)?;
-    let n = &p.name;
-    let (e1, e2) = if p.dimension() == speckle::phase::Dimension::Two {
-        (DVec3::new(-i.y, i.x, 0.0), DVec3::new(-i.y, i.x, 0.0))
-    } else {
-        i.any_orthonormal_pair()
-    };
-    let (g1, g2) = if p.dimension() == speckle::phase::Dimension::Two {
-        (DVec3::new(-v.y, v.x, 0.0), DVec3::new(-v.y, v.x, 0.0))
-    } else {
-        v.any_orthonormal_pair()
-    };
+    let ((e1, e2), (g1, g2)) = (axes(i), axes(v));
     let (m1, m2) = (plan.memory_halfwidth(e1), plan.memory_halfwidth(e2));
     let (q1, q2) = (plan.grain_halfwidth(g1), plan.grain_halfwidth(g2));
     // The pilot's own correlation curves along the first axis, on a geometric grid about the
     // Gaussian's half level.
-    let grid = |h: f64| -> Vec<f64> {
-        (0..13)
-            .map(|k| h * 2f64.powf((k as f64 - 4.0) / 2.0))
-            .collect()
-    };
     let curve = |e: DVec3, memory: bool, h: f64| -> anyhow::Result<Option<f64>> {
         if !h.is_finite() {
             return Ok(None);
         }
-        let s = grid(h);
-        let c = pilot_correlation(
-            scene,
-            a.pair,
-            e,
-            memory,
-            &s,
-            &o,
-            &speckle::estimators::NoProgress,
-        )
-        .map_err(error::estimator)?;
+        let s: Vec<f64> = (0..13)
+            .map(|k| h * 2f64.powf((k as f64 - 4.0) / 2.0))
+            .collect();
+        let c =
+            pilot_correlation(scene, j, e, memory, &s, o, &NoProgress).map_err(error::estimator)?;
         Ok(crossing(&s, &c, 0.5))
     };
     let memory = curve(e1, true, m1)?;
     let grain = curve(g1, false, q1)?;
-    let (c, se) = plan.intensity;
-    say!(
-        "{n}: plan for pair {} (pilot of {} paths, {:.1} s)",
-        a.pair,
-        o.paths,
-        start.elapsed().as_secs_f64()
-    );
-    say!(
-        "  intensity C[j, j] = {c:.6e} +- {se:.2e} ({:.2}%)",
-        100.0 * se / c.abs()
-    );
-    say!(
-        "  paths for 1% / 5%: {:.3e} / {:.3e}",
-        plan.paths_for(0.01),
-        plan.paths_for(0.05)
-    );
+    intensity_lines(plan.intensity.0, plan.intensity.1, plan.paths);
     let show = |x: Option<f64>| match x {
         Some(x) => angle(x),
         None => "beyond 16x the Gaussian's".to_string(),
@@ -143,5 +168,49 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         angle(spacing),
         angle(range)
     );
+    Ok(())
+}
+
+/// With `[motion]`: the pilot's `|g1|` at the scene's lags (lag 0 added), its 1/e decorrelation
+/// time and the lags it suggests.
+fn temporal(p: &Problem, j: usize, o: &CovarianceOptions) -> anyhow::Result<()> {
+    let m = p.motion.as_ref().expect("checked");
+    if p.scene.has_detectors() {
+        say!("  g1: a scene with detectors: `speckle g1` renders it");
+        return Ok(());
+    }
+    let mut lags = vec![0.0];
+    lags.extend(m.lags.iter().copied().filter(|&t| t > 0.0));
+    lags.sort_by(f64::total_cmp);
+    lags.dedup();
+    let est = render_correlation(
+        &p.scene,
+        &m.model,
+        &lags,
+        &Entries::List(vec![(j, j)]),
+        o,
+        &NoProgress,
+    )
+    .map_err(error::estimator)?;
+    let (c, _) = est.curve(0);
+    let g: Vec<f64> = c.iter().map(|z| z.norm() / c[0].re).collect();
+    let unit = p.units.time.map_or("time units", |u| u.symbol);
+    match crossing(&lags[1..], &g[1..], (-1f64).exp()) {
+        Some(tc) => {
+            say!(
+                "  g1: |g1| = 1/e at tau_c = {tc:.4e} {unit} (the pilot's curve at the scene's lags)"
+            );
+            say!(
+                "  suggested lags: {:.4e} to {:.4e} {unit} (tau_c / 10 to 5 tau_c)",
+                tc / 10.0,
+                5.0 * tc
+            );
+        }
+        None => say!(
+            "  g1: |g1| stays above 1/e up to the last lag ({:.4e} {unit}, |g1| = {:.3}): longer lags",
+            lags[lags.len() - 1],
+            g[g.len() - 1]
+        ),
+    }
     Ok(())
 }
