@@ -78,69 +78,37 @@ fn half_level(k: f64, var: f64) -> f64 {
     }
 }
 
-/// A monomial of the entry point `x_1` and the current vertex `x_b` (the contribution's exit
-/// point): `prod_i c_i`, each `c_i` a coordinate of `x_1 - x_b` (`Entry`) or of `x_b` (`Exit`).
+/// A real per-vertex factor `f(x_1, x_b)` of a contribution's entry point `x_1` and exit point
+/// (the current vertex) `x_b`.
+struct EndFactor<F>(F);
+
+impl<F: Fn(DVec3, DVec3) -> f64 + Sync> PathFactor for EndFactor<F> {
+    type State = DVec3;
+    type Value = f64;
+
+    fn start(&self, state: &mut DVec3, x1: DVec3, _ty: usize) -> f64 {
+        *state = x1;
+        (self.0)(x1, x1)
+    }
+
+    fn vertex(&self, state: &mut DVec3, v: &Vertex) -> f64 {
+        (self.0)(*state, v.x)
+    }
+}
+
+/// A coordinate of `x_1 - x_b` (`EntryExit`) or of `x_b` (`Exit`).
 #[derive(Debug, Clone, Copy)]
 enum Coord {
     EntryExit(usize),
     Exit(usize),
 }
 
-struct Monomial(Vec<Coord>);
-
-impl Monomial {
-    fn value(&self, x1: DVec3, xb: DVec3) -> f64 {
-        self.0
-            .iter()
-            .map(|c| match *c {
-                Coord::EntryExit(a) => (x1 - xb)[a],
-                Coord::Exit(a) => xb[a],
-            })
-            .product()
-    }
-}
-
-impl PathFactor for Monomial {
-    type State = DVec3;
-    type Value = f64;
-
-    fn start(&self, state: &mut DVec3, x1: DVec3, _ty: usize) -> f64 {
-        *state = x1;
-        self.value(x1, x1)
-    }
-
-    fn vertex(&self, state: &mut DVec3, v: &Vertex) -> f64 {
-        self.value(*state, v.x)
-    }
-}
-
-/// `cos` or `sin` of `k s e . x`, `x = x_1 - x_b` (memory effect) or `x_b` (grain).
-struct Wave {
-    ks: f64,
-    e: DVec3,
-    memory: bool,
-    sine: bool,
-}
-
-impl Wave {
-    fn value(&self, x1: DVec3, xb: DVec3) -> f64 {
-        let x = if self.memory { x1 - xb } else { xb };
-        let p = self.ks * self.e.dot(x);
-        if self.sine { p.sin() } else { p.cos() }
-    }
-}
-
-impl PathFactor for Wave {
-    type State = DVec3;
-    type Value = f64;
-
-    fn start(&self, state: &mut DVec3, x1: DVec3, _ty: usize) -> f64 {
-        *state = x1;
-        self.value(x1, x1)
-    }
-
-    fn vertex(&self, state: &mut DVec3, v: &Vertex) -> f64 {
-        self.value(*state, v.x)
+impl Coord {
+    fn of(self, x1: DVec3, xb: DVec3) -> f64 {
+        match self {
+            Coord::EntryExit(a) => (x1 - xb)[a],
+            Coord::Exit(a) => xb[a],
+        }
     }
 }
 
@@ -209,12 +177,11 @@ pub fn pilot_correlation<M: Medium + Clone, P: PhaseFunction + Clone>(
     };
     let k = scene.wavenumber();
     let render = |ks: f64, sine: bool| -> Result<f64, EstimatorError> {
-        let f = Wave {
-            ks,
-            e,
-            memory,
-            sine,
-        };
+        // cos or sin of k s e . x, x = x_1 - x_b (memory effect) or x_b (grain).
+        let f = EndFactor(|x1: DVec3, xb: DVec3| {
+            let p = ks * e.dot(if memory { x1 - xb } else { xb });
+            if sine { p.sin() } else { p.cos() }
+        });
         Ok(render_intensity_with(&one, &o, &f, progress)?
             .total
             .value
@@ -258,11 +225,13 @@ pub fn render_plan<M: Medium + Clone, P: PhaseFunction + Clone>(
         coherence: Coherence::ForwardOnly,
         ..*options
     };
-    let moment = |m: Monomial| -> Result<(f64, f64), EstimatorError> {
-        let e = render_intensity_with(&one, &o, &m, progress)?;
+    // The intensity weighted by the product of the coordinates `m`.
+    let moment = |m: &[Coord]| -> Result<(f64, f64), EstimatorError> {
+        let f = EndFactor(|x1: DVec3, xb: DVec3| m.iter().map(|c| c.of(x1, xb)).product());
+        let e = render_intensity_with(&one, &o, &f, progress)?;
         Ok((e.total.value.get(0, 0).re, e.total.std_error.get(0, 0).re))
     };
-    let w = moment(Monomial(vec![]))?;
+    let w = moment(&[])?;
     if w.0.is_nan() || w.0 <= 0.0 {
         return Err(EstimatorError::InvalidInput {
             field: "render.paths".into(),
@@ -272,12 +241,12 @@ pub fn render_plan<M: Medium + Clone, P: PhaseFunction + Clone>(
     let covariance = |c: fn(usize) -> Coord| -> Result<[[f64; 3]; 3], EstimatorError> {
         let mut mean = [0.0; 3];
         for (a, m) in mean.iter_mut().enumerate() {
-            *m = moment(Monomial(vec![c(a)]))?.0 / w.0;
+            *m = moment(&[c(a)])?.0 / w.0;
         }
         let mut v = [[0.0; 3]; 3];
         for a in 0..3 {
             for b in a..3 {
-                let s = moment(Monomial(vec![c(a), c(b)]))?.0 / w.0 - mean[a] * mean[b];
+                let s = moment(&[c(a), c(b)])?.0 / w.0 - mean[a] * mean[b];
                 v[a][b] = s;
                 v[b][a] = s;
             }
