@@ -74,4 +74,10 @@ fn emc_writes_intensities_and_fields() {
         assert!(stderr(&o).contains(args[0].trim_start_matches("--").split('-').next().unwrap()));
     }
     assert!(!d.join("bad").join("e.emc_intensity.npy").exists());
+    // A scene of detectors is refused naming `sensors`.
+    let o = speckle(d, &["example", "tissue_fibre"]);
+    write(d, "t.toml", &stdout(&o));
+    let o = speckle(d, &["emc", "t.toml", "--out", "bad", "-q"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("sensors"), "{}", stderr(&o));
 }

@@ -65,5 +65,15 @@ fn plan_reports_and_refuses() {
         out.contains("tau_c") || out.contains("stays above 1/e"),
         "{out}"
     );
+    // A scene of detectors (a fibre source and a fibre detector): the reading's error.
+    let o = speckle(d, &["example", "tissue_fibre"]);
+    write(d, "t.toml", &stdout(&o));
+    let o = speckle(d, &["plan", "t.toml", "--paths", "2000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o) + &stderr(&o);
+    assert!(
+        out.contains("paths for 1%") && out.contains("detector reading"),
+        "{out}"
+    );
     assert!(!d.join("out").exists(), "plan writes nothing");
 }

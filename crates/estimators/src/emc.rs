@@ -198,6 +198,12 @@ pub fn render_emc<M: Medium, P: PhaseFunction>(
         reason,
     };
     let m = scene.medium();
+    if scene.has_detectors() {
+        return Err(bad(
+            "sensors",
+            "EMC takes plane-wave sources and far-field sensors, not detectors".into(),
+        ));
+    }
     if m.dimension() != Dimension::Three {
         return Err(bad("dimension", "EMC renders 3D scenes only".into()));
     }

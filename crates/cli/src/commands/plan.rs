@@ -57,6 +57,25 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         a.pair,
         o.paths
     );
+    if p.scene.has_detectors() {
+        // Detector readings: their error from a pilot of the detector render.
+        let mut q = p.clone();
+        q.render.paths = o.paths;
+        let e = speckle::runs::intensity(&q, &NoProgress).map_err(error::runs)?;
+        let (c, se) = (
+            e.total.value.get(a.pair, 0).re,
+            e.total.std_error.get(a.pair, 0).re,
+        );
+        intensity_lines(c, se, o.paths);
+        say!(
+            "  memory effect and grain: predicted for a plane-wave source and a far-field \
+             sensor; pair {} is a detector reading (`speckle g1` renders its temporal \
+             correlation)",
+            a.pair
+        );
+        say!("{n}: planned in {:.1} s", start.elapsed().as_secs_f64());
+        return Ok(());
+    }
     let pair = p.scene.pairs()[a.pair];
     match (
         p.scene.sources()[pair.source],
@@ -66,16 +85,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             speckle_and_grain(&p, a.pair, &o, i, v)?
         }
         _ => {
-            if p.scene.has_detectors() {
-                say!("  a scene with detectors: `speckle intensity` reports their errors");
-            } else {
-                let e = render_intensity(&p.scene, &o, &NoProgress).map_err(error::estimator)?;
-                let (c, se) = (
-                    e.total.value.get(a.pair, 0).re,
-                    e.total.std_error.get(a.pair, 0).re,
-                );
-                intensity_lines(c, se, o.paths);
-            }
+            let e = render_intensity(&p.scene, &o, &NoProgress).map_err(error::estimator)?;
+            let (c, se) = (
+                e.total.value.get(a.pair, 0).re,
+                e.total.std_error.get(a.pair, 0).re,
+            );
+            intensity_lines(c, se, o.paths);
             say!(
                 "  memory effect and grain: predicted for a plane-wave source and a far-field \
                  sensor; pair {} has other kinds",
@@ -175,10 +190,6 @@ fn speckle_and_grain(
 /// time and the lags it suggests.
 fn temporal(p: &Problem, j: usize, o: &CovarianceOptions) -> anyhow::Result<()> {
     let m = p.motion.as_ref().expect("checked");
-    if p.scene.has_detectors() {
-        say!("  g1: a scene with detectors: `speckle g1` renders it");
-        return Ok(());
-    }
     let mut lags = vec![0.0];
     lags.extend(m.lags.iter().copied().filter(|&t| t > 0.0));
     lags.sort_by(f64::total_cmp);
