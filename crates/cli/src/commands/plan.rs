@@ -62,47 +62,44 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let mut q = p.clone();
         q.render.paths = o.paths;
         let e = speckle::runs::intensity(&q, &NoProgress).map_err(error::runs)?;
-        let (c, se) = (
-            e.total.value.get(a.pair, 0).re,
-            e.total.std_error.get(a.pair, 0).re,
-        );
-        intensity_lines(c, se, o.paths);
+        estimate_lines(&e, a.pair, o.paths);
         say!(
             "  memory effect and grain: predicted for a plane-wave source and a far-field \
              sensor; pair {} is a detector reading (`speckle g1` renders its temporal \
              correlation)",
             a.pair
         );
-        say!("{n}: planned in {:.1} s", start.elapsed().as_secs_f64());
-        return Ok(());
-    }
-    let pair = p.scene.pairs()[a.pair];
-    match (
-        p.scene.sources()[pair.source],
-        p.scene.sensors()[pair.sensor],
-    ) {
-        (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
-            speckle_and_grain(&p, a.pair, &o, i, v)?
+    } else {
+        let pair = p.scene.pairs()[a.pair];
+        match (
+            p.scene.sources()[pair.source],
+            p.scene.sensors()[pair.sensor],
+        ) {
+            (Source::PlaneWave { direction: i }, Sensor::FarField { direction: v }) => {
+                speckle_and_grain(&p, a.pair, &o, i, v)?
+            }
+            _ => {
+                let e = render_intensity(&p.scene, &o, &NoProgress).map_err(error::estimator)?;
+                estimate_lines(&e, a.pair, o.paths);
+                say!(
+                    "  memory effect and grain: predicted for a plane-wave source and a \
+                     far-field sensor; pair {} has other kinds",
+                    a.pair
+                );
+            }
         }
-        _ => {
-            let e = render_intensity(&p.scene, &o, &NoProgress).map_err(error::estimator)?;
-            let (c, se) = (
-                e.total.value.get(a.pair, 0).re,
-                e.total.std_error.get(a.pair, 0).re,
-            );
-            intensity_lines(c, se, o.paths);
-            say!(
-                "  memory effect and grain: predicted for a plane-wave source and a far-field \
-                 sensor; pair {} has other kinds",
-                a.pair
-            );
+        if p.motion.is_some() {
+            temporal(&p, a.pair, &o)?;
         }
-    }
-    if p.motion.is_some() {
-        temporal(&p, a.pair, &o)?;
     }
     say!("{n}: planned in {:.1} s", start.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// [`intensity_lines`] of pair `j` of an intensity estimate.
+fn estimate_lines(e: &speckle::estimators::CovarianceEstimate, j: usize, paths: u64) {
+    let (c, se) = (e.total.value.get(j, 0).re, e.total.std_error.get(j, 0).re);
+    intensity_lines(c, se, paths);
 }
 
 /// The intensity's relative error and the paths for 1% and 5%.
