@@ -57,7 +57,7 @@ impl BoxMedium {
 
     /// `-sigma_t / 2` times the distance from `x` (inside the box) to its boundary along `e`
     /// (scalar form of the directional kernel, for the probes).
-    fn far_exponent(&self, x: DVec3, e: DVec3) -> f64 {
+    pub(crate) fn far_exponent(&self, x: DVec3, e: DVec3) -> f64 {
         let c = self.center - x;
         (0..3)
             .map(|a| {
@@ -71,7 +71,7 @@ impl BoxMedium {
     /// Whether `x` lies in the box, or outside it by no more than a rounding error of a vertex
     /// position (`1e-9` of the box size), where the kernels are still exact.
     #[inline]
-    fn holds(&self, x: DVec3) -> bool {
+    pub(crate) fn holds(&self, x: DVec3) -> bool {
         let slack = 1e-9 * (self.half.max_element() + 1.0);
         ((x - self.center).abs() - self.half).max_element() <= slack
     }
@@ -182,6 +182,8 @@ pub struct Endpoints<'m, M> {
     runs: Vec<Run>,
     /// Whether any endpoint is a Gaussian beam.
     gaussian: bool,
+    /// How Gaussian connections attenuate their plane waves ([`Endpoints::set_near_field`]).
+    near_field: crate::NearField,
     id: u64,
 }
 
@@ -193,7 +195,12 @@ pub struct Legs {
     im: Vec<f64>,
     dir: [Vec<f64>; 3],
     /// The weighted apertures `a~(w; x)` of the Gaussian endpoints (unused for the others).
-    aperture: Vec<ComplexVmf>,
+    pub(crate) aperture: Vec<ComplexVmf>,
+    /// The two sets of directions drawn from the Gaussian endpoints' masks for the exact
+    /// attenuation ([`Endpoints::draw_attenuation`]; unused for the others).
+    pub(crate) draws: [Vec<crate::attenuation::Draw>; 2],
+    /// The control variates' fits of the Gaussian endpoints ([`crate::NearField::Exact`]).
+    pub(crate) fits: Vec<crate::attenuation::Fit>,
     owner: u64,
 }
 
@@ -230,6 +237,11 @@ impl Legs {
     #[inline]
     pub fn dir(&self, i: usize) -> DVec3 {
         DVec3::new(self.dir[0][i], self.dir[1][i], self.dir[2][i])
+    }
+
+    /// The id of the endpoint set that made these legs.
+    pub(crate) fn owner(&self) -> u64 {
+        self.owner
     }
 
     /// Leg `i`.
@@ -289,6 +301,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             three: medium.dimension() == Dimension::Three,
             side,
             runs,
+            near_field: crate::NearField::Paper,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
@@ -296,6 +309,55 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     /// Number of endpoints.
     pub fn len(&self) -> usize {
         self.ends.len()
+    }
+
+    /// The set with the near-field model `near_field` for its Gaussian beams' connections:
+    /// [`crate::NearField::Paper`] (Eq. 25, the default of a new set: every Gaussian connection
+    /// is then a deterministic closed form) or [`crate::NearField::Exact`], whose closed form is
+    /// the control variate that [`Endpoints::draw_attenuation`] and
+    /// [`Endpoints::correct_scatter`] complete (module docs of `attenuation.rs`).
+    pub fn set_near_field(&mut self, near_field: crate::NearField) {
+        self.near_field = near_field;
+    }
+
+    /// The near-field model of the set's Gaussian connections.
+    pub fn near_field(&self) -> crate::NearField {
+        self.near_field
+    }
+
+    /// The endpoints in source form.
+    pub(crate) fn kinds(&self) -> &[Kind] {
+        &self.ends
+    }
+
+    /// The box form of the medium, when the kernels use it.
+    pub(crate) fn geometry(&self) -> Option<BoxMedium> {
+        self.geometry
+    }
+
+    /// The medium.
+    pub(crate) fn medium(&self) -> &M {
+        self.medium
+    }
+
+    /// The wavenumber.
+    pub(crate) fn wavenumber(&self) -> f64 {
+        self.k
+    }
+
+    /// Whether the medium is 3D.
+    pub(crate) fn is_three(&self) -> bool {
+        self.three
+    }
+
+    /// Which side the endpoints are on.
+    pub(crate) fn side(&self) -> Side {
+        self.side
+    }
+
+    /// The set's id (its legs carry it).
+    pub(crate) fn id(&self) -> u64 {
+        self.id
     }
 
     /// Whether the set is empty.
@@ -325,6 +387,16 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             dir: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             aperture: if self.gaussian {
                 vec![ComplexVmf::new(Complex64::new(0.0, 0.0), [Complex64::new(0.0, 0.0); 3]); n]
+            } else {
+                vec![]
+            },
+            draws: if self.gaussian {
+                [vec![Default::default(); n], vec![Default::default(); n]]
+            } else {
+                Default::default()
+            },
+            fits: if self.gaussian {
+                vec![Default::default(); n]
             } else {
                 vec![]
             },
@@ -374,9 +446,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                 RunKind::Gaussian => {
                     for i in range {
                         if let Kind::Gaussian(b) = &self.ends[i] {
-                            // tau = sigma_t d / 2 back along the axis: -far_exponent.
-                            let tau = -g.far_exponent(x, -b.axis);
-                            legs.aperture[i] = near::aperture_at(b, self.three, self.k, x, tau);
+                            self.gaussian_aperture(i, b, x, legs);
                         }
                     }
                     true
@@ -410,8 +480,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     /// Leg `i` at `x` by the scalar (medium-calling) route.
     fn scalar_leg(&self, i: usize, x: DVec3, legs: &mut Legs) {
         if let Kind::Gaussian(b) = &self.ends[i] {
-            let tau = 0.5 * self.medium.optical_depth_to_infinity(x, -b.axis);
-            legs.aperture[i] = near::aperture_at(b, self.three, self.k, x, tau);
+            self.gaussian_aperture(i, b, x, legs);
             return;
         }
         let leg = self.ends[i].leg(self.medium, self.k, x, self.side);
@@ -480,7 +549,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
 }
 
 /// The vMF lobes of `phase`, which a Gaussian connection needs.
-fn lobes<P: PhaseFunction>(phase: &P) -> &[(f64, f64)] {
+pub(crate) fn lobes<P: PhaseFunction>(phase: &P) -> &[(f64, f64)] {
     phase
         .amplitude_lobes()
         .expect("a Gaussian connection needs a phase with vMF lobes (check_near_field)")

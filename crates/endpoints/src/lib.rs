@@ -47,6 +47,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod attenuation;
 mod detector;
 pub mod fastmath;
 mod free_space;
@@ -56,6 +57,7 @@ mod mean;
 mod plane;
 mod point;
 
+pub use attenuation::NearField;
 pub use detector::{Detector, ON_FACE_TOLERANCE, Weighting};
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
 pub use gaussian::GaussianBeam;

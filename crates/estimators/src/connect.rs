@@ -16,6 +16,7 @@ use glam::DVec3;
 use num_complex::Complex64;
 use speckle_endpoints::{Endpoints, Legs};
 use speckle_medium::Medium;
+use speckle_paths::PathRng;
 use speckle_phase::PhaseFunction;
 use std::ops::Range;
 
@@ -169,6 +170,37 @@ pub(crate) struct Ends {
     pub fwd_sens: Cvec,
     /// `upsilon(i -> x_b) s(-i . w_in)` per source.
     pub rev_src: Cvec,
+    /// With the exact attenuation of Gaussian beams: the draws' stream and the values of draw
+    /// set 1 (the fields above hold set 0; `speckle_endpoints::NearField`). `None` otherwise.
+    pub exact: Option<Exact>,
+}
+
+/// The second draw set of a path's connections with the exact attenuation of Gaussian beams
+/// (see `speckle_endpoints::NearField`): two independent estimates of every Gaussian connection,
+/// whose products `a b^H` are unbiased where `a a^H` would add the correction's variance.
+pub(crate) struct Exact {
+    /// The key of the draws' streams (stream = global path index).
+    key: u64,
+    rng: PathRng,
+    /// Set 1's `fwd_src`, `rev_sens`, `fwd_sens`, `rev_src`.
+    pub fwd_src: Cvec,
+    pub rev_sens: Cvec,
+    pub fwd_sens: Cvec,
+    pub rev_src: Cvec,
+}
+
+/// The index given to [`speckle_rng::derive_seed`] for the key of the draws of the exact
+/// attenuation of Gaussian beams (`speckle_endpoints::NearField::Exact`): path `n` draws from
+/// stream `n` of `derive_seed(seed, NEAR_FIELD_KEY)`, apart from its path's stream.
+pub const NEAR_FIELD_KEY: u64 = 0x4e65_6172_4669; // "NearFi"
+
+/// `out` (set 0's value, already the closed form) copied to `set1`, then each corrected by its
+/// draw set: `correct(set, values)`.
+fn two_sets(out: &mut Cvec, set1: &mut Cvec, mut correct: impl FnMut(usize, &mut Cvec)) {
+    set1.re.clone_from(&out.re);
+    set1.im.clone_from(&out.im);
+    correct(0, out);
+    correct(1, set1);
 }
 
 impl Ends {
@@ -183,13 +215,47 @@ impl Ends {
             rev_sens: Cvec::zeros(sen.len()),
             fwd_sens: Cvec::zeros(sen.len()),
             rev_src: Cvec::zeros(src.len()),
+            exact: None,
         }
     }
 
-    /// The legs at the first vertex `x1`.
+    /// Enables the exact attenuation of Gaussian beams with draws keyed by `key` (see
+    /// [`Exact`]); no effect when neither set has a Gaussian beam.
+    pub fn with_exact<M: Medium>(
+        mut self,
+        src: &Endpoints<M>,
+        sen: &Endpoints<M>,
+        key: u64,
+    ) -> Self {
+        if src.has_gaussian() || sen.has_gaussian() {
+            self.exact = Some(Exact {
+                key,
+                rng: PathRng::new(key, 0),
+                fwd_src: Cvec::zeros(src.len()),
+                rev_sens: Cvec::zeros(sen.len()),
+                fwd_sens: Cvec::zeros(sen.len()),
+                rev_src: Cvec::zeros(src.len()),
+            });
+        }
+        self
+    }
+
+    /// Starts the draws of global path `n` (with the exact attenuation; else nothing).
+    pub fn begin_path(&mut self, n: u64) {
+        if let Some(e) = &mut self.exact {
+            e.rng = PathRng::new(e.key, n);
+        }
+    }
+
+    /// The legs at the first vertex `x1` (and, with the exact attenuation, the draws there).
     pub fn start<M: Medium>(&mut self, src: &Endpoints<M>, sen: &Endpoints<M>, x1: DVec3) {
         src.connect(x1, &mut self.in1);
         sen.connect(x1, &mut self.out1);
+        if let Some(e) = &mut self.exact {
+            let next = &mut || e.rng.next_f64();
+            src.draw_attenuation(x1, &mut self.in1, next);
+            sen.draw_attenuation(x1, &mut self.out1, next);
+        }
     }
 
     /// The scattering values at `x1` once the first direction `w12` is known (amplitude
@@ -205,6 +271,15 @@ impl Ends {
         src.scatter(&self.in1, phase, |d| (d, w12), &mut out.re, &mut out.im);
         let out = &mut self.rev_sens;
         sen.scatter(&self.out1, phase, |d| (-w12, d), &mut out.re, &mut out.im);
+        if let Some(e) = &mut self.exact {
+            let (in1, out1) = (&self.in1, &self.out1);
+            two_sets(&mut self.fwd_src, &mut e.fwd_src, |set, o| {
+                src.correct_scatter(in1, set, phase, |d| (d, w12), &mut o.re, &mut o.im)
+            });
+            two_sets(&mut self.rev_sens, &mut e.rev_sens, |set, o| {
+                sen.correct_scatter(out1, set, phase, |d| (-w12, d), &mut o.re, &mut o.im)
+            });
+        }
     }
 
     /// The legs and scattering values at the vertex `x` reached along `w_in` (amplitude
@@ -219,13 +294,29 @@ impl Ends {
         w_in: DVec3,
         coherence: Coherence,
     ) {
+        let reversed = coherence == Coherence::ForwardAndReversed;
         sen.connect(x, &mut self.out_b);
         let out = &mut self.fwd_sens;
         sen.scatter(&self.out_b, phase, |d| (w_in, d), &mut out.re, &mut out.im);
-        if coherence == Coherence::ForwardAndReversed {
+        if reversed {
             src.connect(x, &mut self.in_b);
             let out = &mut self.rev_src;
             src.scatter(&self.in_b, phase, |d| (d, -w_in), &mut out.re, &mut out.im);
+        }
+        if let Some(e) = &mut self.exact {
+            let next = &mut || e.rng.next_f64();
+            sen.draw_attenuation(x, &mut self.out_b, next);
+            let out_b = &self.out_b;
+            two_sets(&mut self.fwd_sens, &mut e.fwd_sens, |set, o| {
+                sen.correct_scatter(out_b, set, phase, |d| (w_in, d), &mut o.re, &mut o.im)
+            });
+            if reversed {
+                src.draw_attenuation(x, &mut self.in_b, next);
+                let in_b = &self.in_b;
+                two_sets(&mut self.rev_src, &mut e.rev_src, |set, o| {
+                    src.correct_scatter(in_b, set, phase, |d| (d, -w_in), &mut o.re, &mut o.im)
+                });
+            }
         }
     }
 }
@@ -246,6 +337,11 @@ pub(crate) struct Connector<'s, M, P> {
     first_amp: Vec<Cvec>,
     /// The `J` pair values of the current vertex (only for [`Connector::new`]).
     pub(crate) a: Vec<Complex64>,
+    /// With the exact attenuation of Gaussian beams ([`Connector::with_exact_attenuation`]):
+    /// the pair values of draw set 1 (`a` holds set 0's), else empty.
+    pub(crate) b: Vec<Complex64>,
+    /// Scratch for [`Connector::push_moment`]: `(a + b) / 2` and `(a - b) / 2`.
+    halves: (Vec<Complex64>, Vec<Complex64>),
 }
 
 impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
@@ -285,6 +381,15 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
                 )
             }
         };
+        // The scene's near-field model; the sampled remainder of `NearField::Exact` only with
+        // two draw sets (`with_exact_attenuation`): one estimate alone takes its control variate.
+        let (mut sources, mut sensors) = (sources, sensors);
+        let near_field = match scene.near_field() {
+            speckle_endpoints::NearField::Exact => speckle_endpoints::NearField::Fitted,
+            other => other,
+        };
+        sources.set_near_field(near_field);
+        sensors.set_near_field(near_field);
         let n = tile.len();
         let mut c = Self {
             scene,
@@ -295,6 +400,8 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             type1: 0,
             first_amp: vec![],
             a: vec![],
+            b: vec![],
+            halves: Default::default(),
         };
         let types = scene.phases().len();
         if c.sources.all_directional()
@@ -318,6 +425,77 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             c.first_amp = table;
         }
         c
+    }
+
+    /// Makes the connections of the scene's Gaussian beams exact when the scene asks for it
+    /// (`speckle_endpoints::NearField::Exact`, the default): every Gaussian connection is then
+    /// estimated twice, from independent draws keyed by `seed` ([`NEAR_FIELD_KEY`]), and
+    /// [`Connector::first`] and [`Connector::vertex`] fill `b` with set 1's pair values as well
+    /// as `a` with set 0's. Only the estimators of second moments call it (covariance,
+    /// intensity, single scattering); call [`Connector::begin_path`] before each path. Other
+    /// estimators (fields, temporal correlations) take the control variate alone
+    /// (`NearField::Fitted`) for a scene that asks for `Exact`. No effect without Gaussian beams
+    /// or with another model.
+    pub(crate) fn with_exact_attenuation(mut self, seed: u64) -> Self {
+        let near_field = self.scene.near_field();
+        self.sources.set_near_field(near_field);
+        self.sensors.set_near_field(near_field);
+        if near_field == speckle_endpoints::NearField::Exact {
+            let key = speckle_stats::rng::derive_seed(seed, NEAR_FIELD_KEY);
+            let ends = std::mem::replace(&mut self.ends, Ends::new(&self.sources, &self.sensors));
+            self.ends = ends.with_exact(&self.sources, &self.sensors, key);
+            if self.ends.exact.is_some() {
+                self.b = vec![Complex64::new(0.0, 0.0); self.a.len()];
+            }
+        }
+        self
+    }
+
+    /// Whether `b` holds a second, independent estimate of the pair values (exact attenuation
+    /// of Gaussian beams).
+    pub(crate) fn two_sets(&self) -> bool {
+        self.ends.exact.is_some()
+    }
+
+    /// Starts the draws of global path `n` (exact attenuation; else nothing).
+    pub(crate) fn begin_path(&mut self, n: u64) {
+        self.ends.begin_path(n);
+    }
+
+    /// Adds the current pair values' second moment times `w` to `sum`: `w a a^H`, or with two
+    /// independent estimates ([`Connector::two_sets`]) the unbiased `w (a b^H + b a^H) / 2`,
+    /// Hermitian as `w p p^H - w q q^H` with `p, q = (a +- b) / 2` (real `w`; a complex `w`
+    /// takes the general layout's `a b^H` and `b a^H`).
+    pub(crate) fn push_moment<V: speckle_paths::FactorValue>(
+        &mut self,
+        sum: &mut speckle_stats::BatchSum,
+        w: f64,
+        f: V,
+    ) {
+        if !self.two_sets() {
+            if V::REAL {
+                sum.push_hermitian(&self.a, w * f.real());
+            } else {
+                sum.push(&self.a, &self.a, f.complex() * w);
+            }
+            return;
+        }
+        if V::REAL {
+            let (p, q) = &mut self.halves;
+            p.clear();
+            q.clear();
+            for (x, y) in self.a.iter().zip(&self.b) {
+                p.push(0.5 * (x + y));
+                q.push(0.5 * (x - y));
+            }
+            let w = w * f.real();
+            sum.push_hermitian(p, w);
+            sum.push_hermitian(q, -w);
+        } else {
+            let h = 0.5 * f.complex() * w;
+            sum.push(&self.a, &self.b, h);
+            sum.push(&self.b, &self.a, h);
+        }
     }
 
     /// The sources of the tile, as the connector connects them.
@@ -387,14 +565,26 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Calls `emit(i, z F_i)` for every pair `i` of the tile, with the single-scattering
     /// values `F_i = upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` of the current path (Eq. 41's
     /// integrand, with the amplitude `s_ty` of the particle at `x1`).
-    fn single(&self, z: Complex64, mut emit: impl FnMut(usize, Complex64)) {
+    fn single(&self, z: Complex64, emit: impl FnMut(usize, Complex64)) {
+        self.single_set(z, None, emit);
+    }
+
+    /// [`Connector::single`], with the exact attenuation's correction of draw set `set` added
+    /// to the Gaussian beams' values when `set` is given.
+    fn single_set(&self, z: Complex64, set: Option<usize>, mut emit: impl FnMut(usize, Complex64)) {
         let (in1, out1) = (&self.ends.in1, &self.ends.out1);
         let table = self.first_amp.get(self.type1);
         let phase = &self.scene.phases()[self.type1];
         if self.sources.has_gaussian() || self.sensors.has_gaussian() {
             // Aperture integrals (Eqs. 15-18): the endpoints' own single-scattering value.
             let (src, sen) = (&self.sources, &self.sensors);
-            self.for_pairs(|i, s, v| emit(i, z * src.single(in1, s, sen, out1, v, phase)));
+            self.for_pairs(|i, s, v| {
+                let mut f = src.single(in1, s, sen, out1, v, phase);
+                if let Some(set) = set {
+                    f += src.correct_single(in1, s, sen, out1, v, phase, set);
+                }
+                emit(i, z * f)
+            });
             return;
         }
         let f = |i: usize, s: usize, v: usize| {
@@ -417,8 +607,16 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Fills `a` with the single-scattering values `F_j` of the path started by
     /// [`Connector::start`].
     pub(crate) fn fill_first(&mut self) {
+        let one = Complex64::new(1.0, 0.0);
         let mut a = std::mem::take(&mut self.a);
-        self.single(Complex64::new(1.0, 0.0), |i, f| a[i] = f);
+        if self.two_sets() {
+            let mut b = std::mem::take(&mut self.b);
+            self.single_set(one, Some(0), |i, f| a[i] = f);
+            self.single_set(one, Some(1), |i, f| b[i] = f);
+            self.b = b;
+        } else {
+            self.single(one, |i, f| a[i] = f);
+        }
         self.a = a;
     }
 
@@ -488,6 +686,18 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             }
             a[i] = x;
         });
+        if let Some(e) = &e.exact {
+            let (fs, fv, rs, rv) = (&e.fwd_src, &e.fwd_sens, &e.rev_src, &e.rev_sens);
+            let mut b = std::mem::take(&mut self.b);
+            self.for_pairs(|i, s, v| {
+                let mut x = fs.get(s) * fv.get(v);
+                if reversed {
+                    x += rs.get(s) * rv.get(v);
+                }
+                b[i] = x;
+            });
+            self.b = b;
+        }
         self.a = a;
     }
 

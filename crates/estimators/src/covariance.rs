@@ -81,16 +81,6 @@ struct CovarianceSink<'a, 's, 'p, M, P, F: PathFactor> {
     poll: &'a mut Poll<'p>,
 }
 
-/// Adds `w f a a^H` to `sum`: Hermitian with a real factor, general with a complex one.
-#[inline]
-fn push<V: FactorValue>(sum: &mut BatchSum, a: &[num_complex::Complex64], w: f64, f: V) {
-    if V::REAL {
-        sum.push_hermitian(a, w * f.real());
-    } else {
-        sum.push(a, a, f.complex() * w);
-    }
-}
-
 impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
     for CovarianceSink<'_, '_, '_, M, P, F>
 {
@@ -98,7 +88,7 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
         let f = self.factor.start(self.state, x1, ty);
         self.conn.first(x1, ty);
-        push(&mut self.sums[0], &self.conn.a, weight, f);
+        self.conn.push_moment(&mut self.sums[0], weight, f);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -107,12 +97,8 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
         }
         let f = self.factor.vertex(self.state, v);
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
-        push(
-            &mut self.sums[1],
-            &self.conn.a,
-            v.weight_for(self.coherence),
-            f,
-        );
+        let w = v.weight_for(self.coherence);
+        self.conn.push_moment(&mut self.sums[1], w, f);
     }
 
     #[inline]
@@ -355,7 +341,7 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
         (false, true) => Layout::GeneralDiagonal,
     };
     let init = || Scratch {
-        conn: Connector::new(scene),
+        conn: Connector::new(scene).with_exact_attenuation(options.seed),
         state: F::State::default(),
     };
     let path = |s: &mut Scratch<M, P, F::State>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {
@@ -367,6 +353,7 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
             coherence: options.coherence,
             poll,
         };
+        sink.conn.begin_path(n);
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
     let spec = moments_spec(scene.len(), options.paths, layout);
@@ -410,11 +397,12 @@ pub fn render_single_scattering<M: Medium, P: PhaseFunction>(
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     // Single scattering has no reversed order: any coherence samples it alike.
     let tracer = scene.tracer(options.sampling, Coherence::ForwardAndReversed)?;
-    let init = || Connector::new(scene);
+    let init = || Connector::new(scene).with_exact_attenuation(options.seed);
     let path = |conn: &mut Connector<M, P>, n: u64, sums: &mut [BatchSum], _: &mut Poll| {
         if let Some((x1, ty, w)) = tracer.sample_first_vertex(&mut PathRng::new(options.seed, n)) {
+            conn.begin_path(n);
             conn.first(x1, ty);
-            sums[0].push_hermitian(&conn.a, w);
+            conn.push_moment(&mut sums[0], w, 1.0);
         }
     };
     let (mut parts, _) = batch_moments(

@@ -55,6 +55,7 @@ mod lag_powers;
 mod plan;
 mod records;
 
+pub use connect::NEAR_FIELD_KEY;
 pub use correlation::{
     CorrelationEstimate, Entries, MAX_STORED_ENTRIES, MotionFactor, render_correlation,
 };

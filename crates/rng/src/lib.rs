@@ -14,6 +14,7 @@
 //! | fields | `seed` | `r N + n` for path `n` of realization `r` (`N` paths each) |
 //! | field sequences (scatterer displacements; paths and phases as fields) | [`derive_seed`]`(seed, 0x4d6f74696f6e)` | `r N + n` |
 //! | temporal correlation of a scene with Gaussian beams (the end vertices' Brownian displacements; paths as the covariance) | [`derive_seed`]`(seed, 0x42726f776e)` | global path index `n` |
+//! | the exact attenuation of Gaussian beams (`render.nearfield = "exact"`: two directions per beam and vertex; paths as the covariance) | [`derive_seed`]`(seed, 0x4e65_6172_4669)` | global path index `n` |
 //! | wave solver | `seed` | configuration index `r` |
 //! | a sub-render `g` of a study (e.g. group `g` of a wavelength sweep), render `g` of `speckle g1 --reference` | [`derive_seed`]`(seed, g)` | as its estimator |
 //! | tracking (`speckle tracking`): the `U = 0` render, the tracked render of lag `l` | [`derive_seed`]`(seed, 0x747261636b00)`, [`derive_seed`]`(seed, 0x747261636b00 + 1 + l)` | as its estimator |

@@ -23,7 +23,7 @@
 
 use num_complex::Complex64;
 use rayon::prelude::*;
-use speckle_endpoints::{Detector, Emitter, Pair, Sensor, Source};
+use speckle_endpoints::{Detector, Emitter, NearField, Pair, Sensor, Source};
 use speckle_medium::{DVec3, Dimension, Interface, Medium};
 use speckle_motion::{MotionError, MotionModel};
 use speckle_paths::{Beam, Coherence, Tracer, TracerConfig};
@@ -76,7 +76,7 @@ impl From<speckle_endpoints::EndpointError> for SceneError {
 /// A validated speckle rendering problem.
 ///
 /// ```
-/// use speckle_endpoints::{Detector, Emitter, Pair, Sensor, Source};
+/// use speckle_endpoints::{Detector, Emitter, NearField, Pair, Sensor, Source};
 /// use speckle_medium::{Aabb, DVec3, HomogeneousBox};
 /// use speckle_phase::Phase;
 /// use speckle_scene::Scene;
@@ -104,6 +104,7 @@ pub struct Scene<M, P> {
     detectors: Vec<Detector>,
     emitters: Vec<Emitter>,
     interface: Option<Interface>,
+    near_field: NearField,
 }
 
 /// The message of a field render asked of a scene whose sensors are detectors.
@@ -228,6 +229,7 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
             detectors: vec![],
             emitters: vec![],
             interface: None,
+            near_field: NearField::default(),
         })
     }
 
@@ -375,6 +377,19 @@ impl<M: Medium, P: PhaseFunction> Scene<M, P> {
     /// The faces' interface, when the indices differ.
     pub fn interface(&self) -> Option<Interface> {
         self.interface
+    }
+
+    /// The scene with the attenuation model of its Gaussian beams' connections (`render.nearfield`):
+    /// [`NearField::Exact`] (the default) or the paper's [`NearField::Paper`]. No effect without
+    /// Gaussian beams.
+    pub fn with_near_field(mut self, near_field: NearField) -> Self {
+        self.near_field = near_field;
+        self
+    }
+
+    /// How the connections of Gaussian beams attenuate their plane waves.
+    pub fn near_field(&self) -> NearField {
+        self.near_field
     }
 
     /// The medium.

@@ -361,6 +361,7 @@ impl Problem {
             }
             None => Scene::with_types(medium, phases, wavelength, sources, sensors, pairs)?,
         };
+        let scene = scene.with_near_field(render.near_field);
         let scene = match Interface::new(host_index, outside_index) {
             _ if outside_index == host_index => scene,
             Some(i) => scene.with_interface(i),

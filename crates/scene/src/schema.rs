@@ -608,6 +608,8 @@ pub struct RenderSpec {
     pub first_direction_axis: Option<[f64; 3]>,
     /// How first vertices and directions follow the scene's focused Gaussian beams.
     pub beams: BeamsSpec,
+    /// How the connections of focused Gaussian beams attenuate their plane waves.
+    pub nearfield: NearFieldSpec,
     /// Truncate paths after this many vertices (biased; unlimited when absent).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_vertices: Option<u32>,
@@ -632,6 +634,7 @@ impl Default for RenderSpec {
             first_direction: FirstDirectionSpec::Uniform,
             first_direction_axis: None,
             beams: BeamsSpec::PositionAndDirection,
+            nearfield: NearFieldSpec::Fitted,
             max_vertices: None,
             realizations: 8,
             paths_per_realization: 20_000,
@@ -662,6 +665,20 @@ pub enum BeamsSpec {
     Position,
     /// First vertices and first directions (3D) from the beams (the default).
     PositionAndDirection,
+}
+
+/// `render.nearfield`: how the connections of focused Gaussian beams attenuate the plane waves
+/// of their apertures (`speckle_endpoints::NearField`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NearFieldSpec {
+    /// Each along its own path: the closed-form control variate plus an unbiased sampled
+    /// remainder (noisy).
+    Exact,
+    /// The closed-form control variate alone (deterministic; the default).
+    Fitted,
+    /// Along the beam's axis (Bar et al. 2020, Eq. 25), for reproducing the paper.
+    Paper,
 }
 
 /// `render.first_vertex`.

@@ -109,11 +109,12 @@ impl Fill {
 /// full; [`flush`](Self::flush) adds a partly filled block. The sum is complete only after a
 /// flush.
 ///
-/// Weights enter the block as square roots, so only positive ones can: a zero weight adds
-/// nothing and is skipped, a negative one (which no estimator of this crate produces: path
-/// weights are `sigma_s / q_o >= 0` over positive densities) is added at once by
-/// [`rank1_upper`] after the pending block, and a NaN weight poisons the sum as a rank-1 update
-/// would.
+/// Weights enter the block as square roots of their magnitudes: a zero weight adds nothing and
+/// is skipped, and a negative one (the symmetrised cross products `(a b^H + b a^H) / 2 =
+/// p p^H - q q^H` of two independent estimates, `p, q = (a +- b) / 2`) also stores its column
+/// negated in a second block, so that the update is `B R^H` with `R` the signed columns (the
+/// same flops; a block of positive weights alone uses `B B^H` as before). A NaN weight poisons
+/// the sum as a rank-1 update would.
 ///
 /// ```
 /// use num_complex::Complex64;
@@ -138,10 +139,13 @@ impl Fill {
 pub struct HermitianBlock {
     j: usize,
     fill: Fill,
-    /// Column-major `J x capacity`; column `n` is `sqrt(w_n) conj(a_n)`.
+    /// Column-major `J x capacity`; column `n` is `sqrt(|w_n|) conj(a_n)`.
     block: Vec<Complex64>,
-    /// Scratch for the rank-1 fallback (negative weights); empty until needed.
-    conj: Vec<Complex64>,
+    /// The columns of `block` times the signs of their weights, kept only while the block holds
+    /// a negative weight (`signed`); empty until one is pushed.
+    signs: Vec<Complex64>,
+    /// Whether the pending block holds a negative weight (and `signs` its signed columns).
+    signed: bool,
 }
 
 impl HermitianBlock {
@@ -152,7 +156,8 @@ impl HermitianBlock {
             j,
             block: vec![Complex64::ZERO; j * fill.capacity],
             fill,
-            conj: Vec::new(),
+            signs: Vec::new(),
+            signed: false,
         }
     }
 
@@ -177,6 +182,7 @@ impl HermitianBlock {
     /// entries before the sum starts.
     pub fn start_sum(&mut self) {
         self.fill.start_sum();
+        self.signed = false;
     }
 
     /// Adds `w a a^H` to the sum held in `m` (row-major `J x J`, upper triangle): stored in the
@@ -193,18 +199,26 @@ impl HermitianBlock {
         if w == 0.0 {
             return;
         }
-        if w < 0.0 {
-            // B B^H is positive semi-definite: a negative weight cannot enter the block.
-            self.flush(m);
-            self.conj.resize(self.j, Complex64::ZERO);
-            rank1_upper(m, a, &mut self.conj, w);
-            return;
+        let (j, n) = (self.j, self.fill.filled);
+        if w < 0.0 && !self.signed {
+            // The first negative weight of the block: the signed copy starts as the block.
+            self.signs.resize(j * self.fill.capacity, Complex64::ZERO);
+            self.signs[..n * j].copy_from_slice(&self.block[..n * j]);
+            self.signed = true;
         }
-        let s = w.sqrt();
-        let n = self.fill.filled;
-        let col = &mut self.block[n * self.j..(n + 1) * self.j];
+        let s = w.abs().sqrt();
+        let col = &mut self.block[n * j..(n + 1) * j];
         for (b, x) in col.iter_mut().zip(a) {
             *b = Complex64::new(s * x.re, -(s * x.im));
+        }
+        if self.signed {
+            let sign = if w < 0.0 { -1.0 } else { 1.0 };
+            for (r, b) in self.signs[n * j..(n + 1) * j]
+                .iter_mut()
+                .zip(&self.block[n * j..])
+            {
+                *r = sign * b;
+            }
         }
         if self.fill.pushed() {
             self.flush(m);
@@ -233,24 +247,30 @@ impl HermitianBlock {
         // lower triangle of D: D[c, r] = sum w a_r conj(a_c) = sum b_c conj(b_r) = (B B^H)[c, r].
         let d = MatMut::from_column_major_slice_mut(m, j, j);
         let b = MatRef::from_column_major_slice(&self.block[..j * k], j, k);
+        let r = if self.signed {
+            MatRef::from_column_major_slice(&self.signs[..j * k], j, k)
+        } else {
+            b
+        };
         matmul(
             d,
             BlockStructure::TriangularLower,
             self.fill.accum(),
             b,
             BlockStructure::Rectangular,
-            b.adjoint(),
+            r.adjoint(),
             BlockStructure::Rectangular,
             Complex64::ONE,
             Par::Seq,
         );
         self.fill.updated();
+        self.signed = false;
     }
 }
 
 /// Adds `weight * a a^H` to the upper triangle of the row-major `J x J` matrix `m`, one entry at
 /// a time (`conj` is scratch of length `J`): the reference that [`HermitianBlock`] replaces,
-/// kept for vectors with negative weights, for tests and for benchmarks.
+/// kept for tests and benchmarks.
 #[inline]
 pub fn rank1_upper(m: &mut [Complex64], a: &[Complex64], conj: &mut [Complex64], weight: f64) {
     let j = a.len();
@@ -581,7 +601,7 @@ mod tests {
             let reference = by_block(j, 4, &vectors);
             let mut m = vector(j * j, 99);
             let mut acc = HermitianBlock::new(j, 4);
-            acc.push(&mut m, &vector(j, 1234), 7.0);
+            acc.push(&mut m, &vector(j, 1234), -7.0);
             acc.start_sum();
             for (a, w) in &vectors {
                 acc.push(&mut m, a, *w);

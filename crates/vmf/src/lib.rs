@@ -52,6 +52,7 @@ mod bessel;
 mod circle;
 mod fit;
 mod mixture;
+mod sample;
 
 pub use algebra::{
     ComplexVmf, ln_sinhc, ln_sinhc_complex, ln_vmf_normaliser, mean_resultant_length,
@@ -63,6 +64,7 @@ pub use bessel::{bessel_ratio_over_z, ln_bessel_i0};
 pub use circle::{CircleVmf, ln_circle_normaliser};
 pub use fit::{FitOptions, FitReport, G_TOLERANCE, fit_amplitude, fit_amplitude_fixed};
 pub use mixture::{MAX_COMPONENTS, MAX_GAMMA, VmfLobe, VmfMixture};
+pub use sample::{sample_circle_vmf, sample_sphere_vmf};
 
 /// Errors of mixture construction and fitting; each names the offending field.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

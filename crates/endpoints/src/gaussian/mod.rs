@@ -380,4 +380,4 @@ pub(crate) mod near {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -8,7 +8,7 @@ fn planar(phi: f64) -> DVec3 {
 use speckle_medium::{Aabb, HomogeneousBox};
 
 /// Gauss-Legendre nodes and weights on `[-1, 1]` (Newton on `P_n`).
-fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+pub(crate) fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     (0..n)
         .map(|i| {
             let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
@@ -57,7 +57,12 @@ fn c3_scaled(g: f64) -> f64 {
 
 /// `int_{S^2} f(w) dw` for `f` peaked about `axis` with concentration about `g`, oscillating
 /// at up to `rate` radians per unit change of `w`.
-fn sphere_quad(axis: DVec3, g: f64, rate: f64, f: impl Fn(DVec3) -> Complex64) -> Complex64 {
+pub(crate) fn sphere_quad(
+    axis: DVec3,
+    g: f64,
+    rate: f64,
+    f: impl Fn(DVec3) -> Complex64,
+) -> Complex64 {
     let (t1, t2) = axis.any_orthonormal_pair();
     let mut edges = vec![0.0];
     let mut e = 1e-3 / g.max(1.0);

@@ -6,10 +6,12 @@
 
 use crate::SceneError;
 use crate::safe::{Access, output_dir};
-use crate::schema::{BeamsSpec, FirstDirectionSpec, FirstVertexSpec, OutputSpec, RenderSpec};
+use crate::schema::{
+    BeamsSpec, FirstDirectionSpec, FirstVertexSpec, NearFieldSpec, OutputSpec, RenderSpec,
+};
 use crate::validate::{flat_direction, invalid};
 use serde_json::{Value, json};
-use speckle_endpoints::Source;
+use speckle_endpoints::{NearField, Source};
 use speckle_medium::{DVec3, Dimension};
 use speckle_paths::{BeamStrategy, Coherence, FirstDirection, FirstVertex, TracerConfig};
 use std::path::PathBuf;
@@ -25,6 +27,9 @@ pub struct RenderSettings {
     pub coherence: Coherence,
     /// Path sampling strategies of the Monte Carlo renders.
     pub sampling: TracerConfig,
+    /// How the connections of Gaussian beams attenuate their plane waves (`render.nearfield`;
+    /// the problem's scene carries it, [`crate::Scene::near_field`]).
+    pub near_field: NearField,
     /// Field realizations of `speckle fields` (at least 1).
     pub realizations: usize,
     /// Sub-paths per field realization (at least 1).
@@ -133,6 +138,11 @@ impl RenderSettings {
                 },
                 max_vertices,
             },
+            near_field: match r.nearfield {
+                NearFieldSpec::Exact => NearField::Exact,
+                NearFieldSpec::Fitted => NearField::Fitted,
+                NearFieldSpec::Paper => NearField::Paper,
+            },
             realizations: r.realizations,
             paths_per_realization: r.paths_per_realization,
             add_mean: r.add_mean,
@@ -175,6 +185,11 @@ impl RenderSettings {
             "paths": self.paths,
             "seed": self.seed,
             "coherence": coherence_name(self.coherence),
+            "nearfield": match self.near_field {
+                NearField::Exact => "exact",
+                NearField::Fitted => "fitted",
+                NearField::Paper => "paper",
+            },
             "threads": threads,
             "tracer": self.tracer_json(),
             "wall_time_s": wall,
