@@ -360,6 +360,29 @@ fn render_beams_loads_names_its_field_and_reaches_the_sidecar() {
 }
 
 #[test]
+fn render_nearfield_loads_names_its_field_and_reaches_the_scene_and_sidecar() {
+    use speckle_endpoints::NearField;
+    let with = |v: &str| format!("{OK}[render]\nnearfield = {v}\n");
+    // The default fits each plane wave's own attenuation.
+    let p = load(OK).unwrap();
+    assert_eq!(p.render.near_field, NearField::Fitted);
+    assert_eq!(p.scene.near_field(), NearField::Fitted);
+    for (v, want) in [
+        ("exact", NearField::Exact),
+        ("fitted", NearField::Fitted),
+        ("paper", NearField::Paper),
+    ] {
+        let p = load(&with(&format!("\"{v}\""))).unwrap();
+        assert_eq!((p.render.near_field, p.scene.near_field()), (want, want));
+        assert_eq!(p.render.paths_json(1, 0.0)["nearfield"], v);
+    }
+    for bad in ["\"axial\"", "1", "true"] {
+        let e = load(&with(bad)).unwrap_err().to_string();
+        assert!(e.contains("render.nearfield"), "{bad}: {e}");
+    }
+}
+
+#[test]
 fn the_estimates_of_commands_that_compute_means_include_them() {
     // Issue 27, item 8: the closed-form mean of a large far grid, estimated at hours by
     // `speckle mean`, was not counted in the estimates of the commands that compute it.
