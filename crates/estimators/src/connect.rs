@@ -451,6 +451,33 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
         self
     }
 
+    /// Adds the products of the current pair values at the listed entries `(p, q)`, times
+    /// `w`, to the general-diagonal sum `sum`: `a_p conj(a_q)`, or with two independent
+    /// estimates `(a_p conj(b_q) + b_p conj(a_q)) / 2` (see [`Connector::push_moment`]).
+    pub(crate) fn push_entries(
+        &mut self,
+        sum: &mut speckle_stats::BatchSum,
+        entries: &[(u32, u32)],
+        w: f64,
+    ) {
+        let v = &mut self.halves.0;
+        v.clear();
+        let (a, b) = (&self.a, &self.b);
+        if self.ends.exact.is_some() {
+            v.extend(entries.iter().map(|&(p, q)| {
+                let (p, q) = (p as usize, q as usize);
+                0.5 * (a[p] * b[q].conj() + b[p] * a[q].conj())
+            }));
+        } else {
+            v.extend(
+                entries
+                    .iter()
+                    .map(|&(p, q)| a[p as usize] * a[q as usize].conj()),
+            );
+        }
+        sum.push_values(v, Complex64::new(w, 0.0));
+    }
+
     /// Whether `b` holds a second, independent estimate of the pair values (exact attenuation
     /// of Gaussian beams).
     pub(crate) fn two_sets(&self) -> bool {

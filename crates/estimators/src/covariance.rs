@@ -78,7 +78,33 @@ struct CovarianceSink<'a, 's, 'p, M, P, F: PathFactor> {
     factor: &'a F,
     sums: &'a mut [BatchSum],
     coherence: Coherence,
+    /// The listed entries `(p, q)` of a render of entries ([`Target::Entries`]), else `None`.
+    entries: Option<&'a [(u32, u32)]>,
     poll: &'a mut Poll<'p>,
+}
+
+/// What a render of this module accumulates.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Target<'e> {
+    /// Every entry (the upper triangle of a Hermitian sum).
+    Full,
+    /// The diagonal: the intensities.
+    Diagonal,
+    /// Listed entries `(p, q)` of the matrix (real path factors only).
+    Entries(&'e [(u32, u32)]),
+}
+
+impl<M: Medium, P: PhaseFunction, F: PathFactor> CovarianceSink<'_, '_, '_, M, P, F> {
+    /// Adds the current vertex's pair values, weighted `w f`, to part `part`.
+    #[inline]
+    fn push(&mut self, part: usize, w: f64, f: F::Value) {
+        match self.entries {
+            None => self.conn.push_moment(&mut self.sums[part], w, f),
+            Some(e) => self
+                .conn
+                .push_entries(&mut self.sums[part], e, w * f.real()),
+        }
+    }
 }
 
 impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
@@ -88,7 +114,7 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
         // Single scattering adds (sigma_s / q_o) F F^H (Alg. 1; V F F^H for uniform x1).
         let f = self.factor.start(self.state, x1, ty);
         self.conn.first(x1, ty);
-        self.conn.push_moment(&mut self.sums[0], weight, f);
+        self.push(0, weight, f);
     }
 
     fn vertex(&mut self, v: &Vertex, _rng: &mut PathRng) {
@@ -98,7 +124,7 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> VertexSink
         let f = self.factor.vertex(self.state, v);
         self.conn.vertex(v.x, v.w_in, v.ty, self.coherence);
         let w = v.weight_for(self.coherence);
-        self.conn.push_moment(&mut self.sums[1], w, f);
+        self.push(1, w, f);
     }
 
     #[inline]
@@ -209,7 +235,7 @@ pub fn render_covariance_shard<M: Medium, P: PhaseFunction>(
         scene,
         options,
         &NoFactor,
-        false,
+        Target::Full,
         Some(shard),
         progress,
     )?)
@@ -226,7 +252,7 @@ pub fn render_intensity_shard<M: Medium, P: PhaseFunction>(
         scene,
         options,
         &NoFactor,
-        true,
+        Target::Diagonal,
         Some(shard),
         progress,
     )?)
@@ -316,7 +342,23 @@ fn render<M: Medium, P: PhaseFunction, F: PathFactor>(
     diagonal: bool,
     progress: &dyn Progress,
 ) -> Result<CovarianceEstimate, EstimatorError> {
-    match render_run(scene, options, factor, diagonal, None, progress)? {
+    let target = if diagonal {
+        Target::Diagonal
+    } else {
+        Target::Full
+    };
+    render_target(scene, options, factor, target, progress)
+}
+
+/// [`render`] of any target.
+pub(crate) fn render_target<M: Medium, P: PhaseFunction, F: PathFactor>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    factor: &F,
+    target: Target,
+    progress: &dyn Progress,
+) -> Result<CovarianceEstimate, EstimatorError> {
+    match render_run(scene, options, factor, target, None, progress)? {
         MomentsRun::Estimate(parts, total) => Ok(estimate(parts, total, options.paths)),
         MomentsRun::Shard(_) => unreachable!("a whole run gives an estimate"),
     }
@@ -327,18 +369,22 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
     scene: &Scene<M, P>,
     options: &CovarianceOptions,
     factor: &F,
-    diagonal: bool,
+    target: Target,
     shard: Option<Shard>,
     progress: &dyn Progress,
 ) -> Result<MomentsRun, EstimatorError> {
     check_paths(options.paths)?;
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     let tracer = scene.tracer(options.sampling, options.coherence)?;
-    let layout = match (F::Value::REAL, diagonal) {
-        (true, false) => Layout::Hermitian,
-        (true, true) => Layout::HermitianDiagonal,
-        (false, false) => Layout::General,
-        (false, true) => Layout::GeneralDiagonal,
+    let (layout, j, entries) = match (F::Value::REAL, target) {
+        (true, Target::Full) => (Layout::Hermitian, scene.len(), None),
+        (true, Target::Diagonal) => (Layout::HermitianDiagonal, scene.len(), None),
+        (false, Target::Full) => (Layout::General, scene.len(), None),
+        (false, Target::Diagonal) => (Layout::GeneralDiagonal, scene.len(), None),
+        (_, Target::Entries(e)) => {
+            assert!(F::Value::REAL, "listed entries take real path factors");
+            (Layout::GeneralDiagonal, e.len(), Some(e))
+        }
     };
     let init = || Scratch {
         conn: Connector::new(scene).with_exact_attenuation(options.seed),
@@ -351,12 +397,13 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
             factor,
             sums,
             coherence: options.coherence,
+            entries,
             poll,
         };
         sink.conn.begin_path(n);
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);
     };
-    let spec = moments_spec(scene.len(), options.paths, layout);
+    let spec = moments_spec(j, options.paths, layout);
     run_moments(spec, shard, init, path, progress).ok_or(EstimatorError::Cancelled)
 }
 

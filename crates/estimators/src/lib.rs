@@ -44,6 +44,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod band;
 mod connect;
 mod correlation;
 mod covariance;
@@ -55,6 +56,7 @@ mod lag_powers;
 mod plan;
 mod records;
 
+pub use band::{BandEstimate, ImageBand, MAX_BAND_ENTRIES, render_covariance_band};
 pub use connect::NEAR_FIELD_KEY;
 pub use correlation::{
     CorrelationEstimate, Entries, MAX_STORED_ENTRIES, MotionFactor, render_correlation,

@@ -20,6 +20,11 @@ pub struct Args {
     /// Write no PNG.
     #[arg(long)]
     pub no_png: bool,
+    /// Covariance only: keep the entries whose sensors are within R pixels of each other
+    /// along both axes of the scene's image of sensors (a band around the diagonal, for images
+    /// whose dense covariance would not fit), written as `<name>.cov_band.npy`.
+    #[arg(long, value_name = "R")]
+    pub band: Option<usize>,
 }
 
 impl Args {
@@ -38,7 +43,68 @@ pub use speckle::runs::covariance_options as options;
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
-    render(&p, run)
+    match a.band {
+        Some(r) => render_band(&p, run, r),
+        None => render(&p, run),
+    }
+}
+
+/// Renders and writes the band of half-width `radius` pixels of the covariance of `p`, whose
+/// sensors must form one image ([`speckle::estimators::render_covariance_band`]).
+fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()> {
+    use speckle::estimators::{ImageBand, render_covariance_band};
+    run.whole_only(p, "covariance --band")?;
+    let grid = p.grid.as_ref().ok_or_else(|| {
+        error::estimator(speckle::estimators::EstimatorError::InvalidInput {
+            field: "sensors".into(),
+            reason: "--band needs sensors that form one image (a far_grid, point_grid or \
+                     gaussian_grid)"
+                .into(),
+        })
+    })?;
+    let band = ImageBand::of(&p.scene, grid.nx, grid.ny, radius).map_err(error::estimator)?;
+    // The cost of the connections and of the kept entries: an intensity render's estimate.
+    let mut staged = plan(p, estimate(p, Command::Intensity), run)?;
+    let opts = options(p);
+    let (est, wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
+        render_covariance_band(&p.scene, &opts, &band, pr)
+    })?;
+    let n = &p.name;
+    let shape = band.shape();
+    let mut files = json!({
+        "layout": "cov_band: complex128 (S, ny, nx, S, 2R + 1, 2R + 1), element [s1, y, x, s2, \
+                   dy + R, dx + R] = C[(s1, pixel (y, x)), (s2, pixel (y + dy, x + dx))], NaN \
+                   where the offset leaves the image; entries beyond R pixels are not rendered; \
+                   cov_band_stderr: re = standard error of Re C, im = of Im C",
+    });
+    let arrays = [
+        ("cov_band", encode_c16(&shape, &est.value)),
+        ("cov_band_stderr", encode_c16(&shape, &est.std_error)),
+    ];
+    stage_arrays(&mut staged, &mut files, n, arrays);
+    let edge = est.edge_correlation();
+    let summary = json!({
+        "radius": radius,
+        "shape": shape,
+        "kept_entries": band.entries().len(),
+        "edge_correlation": edge,
+        "mean_correlation_by_offset": est.mean_correlation(),
+    });
+    let render = p.render.paths_json(threads(), wall);
+    let meta = p.sidecar("covariance_band", render, files, summary);
+    stage_sidecar(&mut staged, p, "cov_band", &meta)?;
+    say!(
+        "{n}: covariance band of radius {radius} px over {} x {} pixels ({} kept entries of J^2 = \
+         {:.3e}) from {} paths in {wall:.2} s ({} threads); largest correlation on the band's \
+         edge {edge:.3}",
+        grid.nx,
+        grid.ny,
+        band.entries().len(),
+        (p.pairs() as f64).powi(2),
+        est.paths,
+        threads()
+    );
+    finish(staged)
 }
 
 /// Renders and writes the covariance of `p`.
