@@ -673,6 +673,23 @@ impl Problem {
     /// Entries merged into the moments, `entries` per batch: the render is cut into about
     /// [`speckle_stats::TARGET_BATCHES`] batches whatever its paths, so for large `J` the
     /// merges, not the paths, set the time.
+    /// The cost of a band of `entries` kept entries of the covariance (`speckle covariance
+    /// --band`): the intensity render's connections, plus per vertex the two parts' products
+    /// at the kept entries, the moments and batch sums of `entries` values (as the intensity's
+    /// of `J`), their merges, and two staged arrays of the band.
+    pub fn band_estimate(&self, entries: usize, threads: usize) -> Result<Estimate, SceneError> {
+        let mut e = self.estimate_with(Command::Intensity, threads, None)?;
+        let (n, t) = (entries as f64, threads.max(1) as f64);
+        e.bytes += 96.0 * n + 4.0 * t * 2.0 * 16.0 * n + 32.0 * n;
+        let products = e.vertices_per_path * 5.0 * n * PAIR_S * self.render.paths as f64;
+        e.seconds += products / t + self.merged_entries(n) * DIAGONAL_MERGE_S;
+        if products / t > e.seconds / 2.0 {
+            e.time_field = "band".into();
+        }
+        e.memory_field = "band".into();
+        Ok(e)
+    }
+
     fn merged_entries(&self, entries: f64) -> f64 {
         let batches =
             speckle_stats::Batches::about(self.render.paths, speckle_stats::TARGET_BATCHES);

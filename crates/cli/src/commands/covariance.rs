@@ -63,8 +63,7 @@ fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()
         })
     })?;
     let band = ImageBand::of(&p.scene, grid.nx, grid.ny, radius).map_err(error::estimator)?;
-    // The cost of the connections and of the kept entries: an intensity render's estimate.
-    let mut staged = plan(p, estimate(p, Command::Intensity), run)?;
+    let mut staged = plan(p, p.band_estimate(band.entries().len(), threads()), run)?;
     let opts = options(p);
     let (est, wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
         render_covariance_band(&p.scene, &opts, &band, pr)
