@@ -205,19 +205,14 @@ pub struct BandEstimate {
 }
 
 impl BandEstimate {
-    /// The largest `|C[p, q]| / sqrt(C[p, p] C[q, q])` over the band's outermost ring (an
-    /// offset of exactly `radius` pixels along one axis, at most along the other): where the
-    /// correlation has fallen to when the band stops. `0` for a radius of 0.
-    pub fn edge_correlation(&self) -> f64 {
+    /// Calls `f(s1, s2, dy, dx, rho)` with `rho = |C| / sqrt(I I)` for every element inside the
+    /// image whose `rho` is finite (`dy`, `dx` the array's offset indices, `0..2r + 1`).
+    fn each_correlation(&self, mut f: impl FnMut(usize, usize, usize, usize, f64)) {
         let [s, ny, nx, _, w, _] = self.band.shape();
         let r = self.band.radius;
-        if r == 0 {
-            return 0.0;
-        }
         let at = |s1: usize, y: usize, x: usize, s2: usize, dy: usize, dx: usize| {
             self.value[((((s1 * ny + y) * nx + x) * s + s2) * w + dy) * w + dx]
         };
-        let mut max: f64 = 0.0;
         for s1 in 0..s {
             for y in 0..ny {
                 for x in 0..nx {
@@ -225,18 +220,14 @@ impl BandEstimate {
                     for s2 in 0..s {
                         for dy in 0..w {
                             for dx in 0..w {
-                                if dy != 0 && dy != w - 1 && dx != 0 && dx != w - 1 {
-                                    continue;
-                                }
                                 let c = at(s1, y, x, s2, dy, dx);
                                 if c.re.is_nan() {
                                     continue;
                                 }
-                                let (yy, xx) = (y + dy - r, x + dx - r);
-                                let i2 = at(s2, yy, xx, s2, r, r).re;
+                                let i2 = at(s2, y + dy - r, x + dx - r, s2, r, r).re;
                                 let rho = c.norm() / (i1 * i2).sqrt();
                                 if rho.is_finite() {
-                                    max = max.max(rho);
+                                    f(s1, s2, dy, dx, rho);
                                 }
                             }
                         }
@@ -244,42 +235,36 @@ impl BandEstimate {
                 }
             }
         }
+    }
+
+    /// The largest `|C[p, q]| / sqrt(C[p, p] C[q, q])` over the band's outermost ring (an
+    /// offset of exactly `radius` pixels along one axis, at most along the other): where the
+    /// correlation has fallen to when the band stops. `0` for a radius of 0.
+    pub fn edge_correlation(&self) -> f64 {
+        let last = 2 * self.band.radius;
+        let mut max: f64 = 0.0;
+        if last > 0 {
+            self.each_correlation(|_, _, dy, dx, rho| {
+                if dy == 0 || dx == 0 || dy == last || dx == last {
+                    max = max.max(rho);
+                }
+            });
+        }
         max
     }
-}
 
-impl BandEstimate {
     /// The mean correlation `|C| / sqrt(I I)` at each offset `(dy, dx)` (row-major,
     /// `(2r + 1)^2` values), over the pixels and sources whose offset stays in the image
     /// (`s2 = s1`): the shape of the speckle grain, which the band cuts at `radius`.
     pub fn mean_correlation(&self) -> Vec<f64> {
-        let [s, ny, nx, _, w, _] = self.band.shape();
-        let r = self.band.radius;
-        let at = |s1: usize, y: usize, x: usize, s2: usize, dy: usize, dx: usize| {
-            self.value[((((s1 * ny + y) * nx + x) * s + s2) * w + dy) * w + dx]
-        };
+        let w = 2 * self.band.radius + 1;
         let (mut sum, mut count) = (vec![0.0; w * w], vec![0usize; w * w]);
-        for s1 in 0..s {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let i1 = at(s1, y, x, s1, r, r).re;
-                    for dy in 0..w {
-                        for dx in 0..w {
-                            let c = at(s1, y, x, s1, dy, dx);
-                            if c.re.is_nan() {
-                                continue;
-                            }
-                            let i2 = at(s1, y + dy - r, x + dx - r, s1, r, r).re;
-                            let rho = c.norm() / (i1 * i2).sqrt();
-                            if rho.is_finite() {
-                                sum[dy * w + dx] += rho;
-                                count[dy * w + dx] += 1;
-                            }
-                        }
-                    }
-                }
+        self.each_correlation(|s1, s2, dy, dx, rho| {
+            if s1 == s2 {
+                sum[dy * w + dx] += rho;
+                count[dy * w + dx] += 1;
             }
-        }
+        });
         sum.iter()
             .zip(&count)
             .map(|(&a, &n)| if n > 0 { a / n as f64 } else { f64::NAN })

@@ -342,24 +342,8 @@ impl BeamSampler {
             }
             t -= w;
         }
-        sample_vmf(pairs.r[k], u)
+        speckle_vmf::sample_sphere_vmf(pairs.r[k], u)
     }
-}
-
-/// A direction from the real vMF `C_3(|r|) e^(r . w)` (uniform for `r ~ 0`).
-fn sample_vmf(r: DVec3, u: [f64; 2]) -> DVec3 {
-    let kappa = r.length();
-    let cos = if kappa > 1e-8 {
-        // Inverse CDF of e^(kappa t) on [-1, 1], stable for large kappa.
-        (1.0 + ((1.0 - u[0]) * (-2.0 * kappa).exp_m1()).ln_1p() / kappa).clamp(-1.0, 1.0)
-    } else {
-        return Dimension::Three.sample_uniform_direction(u);
-    };
-    let mean = r / kappa;
-    let (a, b) = mean.any_orthonormal_pair();
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let (s, c) = (std::f64::consts::TAU * u[1]).sin_cos();
-    cos * mean + sin * (c * a + s * b)
 }
 
 #[cfg(test)]
