@@ -2,7 +2,7 @@
 //! `speckle_endpoints::NearField`), against the exact wave solver in absolute units.
 //!
 //! Bar et al. 2020 attenuate every plane wave of a beam's aperture along the beam's axis (Eq.
-//! 25, `NearField::Paper`), which overestimates intensities by about `tau / gamma` relatively.
+//! 25, `NearField::Paper`), which overestimates intensities by about `2 tau / gamma`.
 //! The default (`NearField::Fitted`) fits `e^(c0 - beta . psi)` to the exact attenuation about
 //! the axis (closed form, fourth-order error); `NearField::Exact` adds the sampled remainder
 //! (unbiased, noisier).

@@ -8,7 +8,7 @@
 //! `T(x, psi) = e^(-h(psi))`, `h(psi) = sigma_t d(x, -psi) / 2`, `d(x, -psi)` the distance from
 //! `x` back along `-psi` to the medium's boundary. In a slab lit along its normal the oblique
 //! plane waves cross more medium than the axis, so Eq. 25 overestimates every intensity, by
-//! about `tau / gamma` relatively (1-3% in the scenes of `validation/nearfield/`, 8% at
+//! about `2 tau / gamma` relatively (1-3% in the scenes of `validation/nearfield/`, 8% at
 //! `gamma = 4`).
 //!
 //! **Control variate.** Any attenuation of the form `T_cv(psi) = e^(c0 - beta . psi)` keeps the
@@ -59,13 +59,13 @@ pub enum NearField {
     /// `tests/nearfield_attenuation.rs`): a check of the default rather than a production
     /// estimator.
     Exact,
-    /// The default: the closed-form control variate alone (`T_cv`, fitted about the axis; see the module
-    /// docs of `attenuation.rs`): deterministic, as cheap as Eq. 25, with a residual bias of
-    /// fourth order in the aperture's angle where Eq. 25's is second order.
+    /// The default: the closed-form control variate alone (`T_cv`, fitted about the axis; see
+    /// the module docs of `attenuation.rs`): deterministic, as cheap as Eq. 25, with a residual
+    /// bias of fourth order in the aperture's angle where Eq. 25's is second order.
     #[default]
     Fitted,
     /// Every plane wave by the optical depth along the beam's axis (Bar et al. 2020, Eq. 25):
-    /// the paper's estimator, biased high by about `tau / (2 gamma)` in intensity; for
+    /// the paper's estimator, biased high by about `2 tau / gamma` in intensity; for
     /// reproducing its figures.
     Paper,
 }
@@ -163,8 +163,9 @@ impl<M: Medium> Endpoints<'_, M> {
     }
 
     /// The weighted aperture of beam `b` at `x` (Eqs. 26-27) with the attenuation of the
-    /// endpoints' near-field model: Eq. 25's `e^(-tau)` along the axis, or with
-    /// [`NearField::Exact`] the control variate `T_cv` (whose fit `legs` keeps for the draws).
+    /// endpoints' near-field model: Eq. 25's `e^(-tau)` along the axis ([`NearField::Paper`]),
+    /// else the control variate `T_cv` (whose fit `legs` keeps for the draws of
+    /// [`NearField::Exact`]).
     pub(crate) fn gaussian_aperture(&self, i: usize, b: &GaussianBeam, x: DVec3, legs: &mut Legs) {
         let (three, k) = (self.is_three(), self.wavenumber());
         if self.near_field() == NearField::Paper {
