@@ -131,8 +131,8 @@ impl<M: Medium> Endpoints<'_, M> {
         let h0 = self.half_depth(x, -a);
         let eps = (1.0 / (b.concentration + 1.0).sqrt()).min(0.5);
         let (se, ce) = eps.sin_cos();
-        let (t1, t2) = a.any_orthonormal_pair();
         let tangents: &[DVec3] = if self.is_three() {
+            let (t1, t2) = a.any_orthonormal_pair();
             &[t1, t2]
         } else {
             &[DVec3::new(-a.y, a.x, 0.0)]
@@ -301,7 +301,7 @@ impl<M: Medium> Endpoints<'_, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gaussian::tests::{gauss_legendre, sphere_quad};
+    use crate::gaussian::tests::{c3_scaled, gauss_legendre, sphere_quad};
     use crate::{Sensor, Source};
     use glam::DVec2;
     use speckle_medium::{Aabb, HomogeneousBox};
@@ -345,7 +345,7 @@ mod tests {
         w: DVec3,
     ) -> Complex64 {
         let g = b.concentration;
-        let c3 = g / (2.0 * PI * (1.0 - (-2.0 * g).exp()));
+        let c3 = c3_scaled(g);
         let rate = k * (x - b.focus).length() + 6.0;
         sphere_quad(b.axis, g, rate, |psi| {
             let t = (-0.5 * m.optical_depth_to_infinity(x, -psi)).exp();

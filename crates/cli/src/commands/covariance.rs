@@ -63,7 +63,8 @@ fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()
         })
     })?;
     let band = ImageBand::of(&p.scene, grid.nx, grid.ny, radius).map_err(error::estimator)?;
-    let mut staged = plan(p, p.band_estimate(band.entries().len(), threads()), run)?;
+    let kept = band.entries().len();
+    let mut staged = plan(p, p.band_estimate(kept, threads()), run)?;
     let opts = options(p);
     let (est, wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
         render_covariance_band(&p.scene, &opts, &band, pr)
@@ -85,7 +86,7 @@ fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()
     let summary = json!({
         "radius": radius,
         "shape": shape,
-        "kept_entries": band.entries().len(),
+        "kept_entries": kept,
         "edge_correlation": edge,
         "mean_correlation_by_offset": est.mean_correlation(),
     });
@@ -98,7 +99,7 @@ fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()
          edge {edge:.3}",
         grid.nx,
         grid.ny,
-        band.entries().len(),
+        kept,
         (p.pairs() as f64).powi(2),
         est.paths,
         threads()

@@ -47,7 +47,7 @@ fn superposition_3d(b: &GaussianBeam, k: f64, x: DVec3) -> Complex64 {
 }
 
 /// `C_3(gamma) e^gamma` from its definition.
-fn c3_scaled(g: f64) -> f64 {
+pub(crate) fn c3_scaled(g: f64) -> f64 {
     if g == 0.0 {
         1.0 / (4.0 * PI)
     } else {

@@ -41,12 +41,7 @@ pub(super) fn two_sets(out: &mut Cvec, set1: &mut Cvec, mut correct: impl FnMut(
 impl Ends {
     /// Enables the exact attenuation of Gaussian beams with draws keyed by `key` (see
     /// [`Exact`]); no effect when neither set has a Gaussian beam.
-    pub fn with_exact<M: Medium>(
-        mut self,
-        src: &Endpoints<M>,
-        sen: &Endpoints<M>,
-        key: u64,
-    ) -> Self {
+    pub fn enable_exact<M: Medium>(&mut self, src: &Endpoints<M>, sen: &Endpoints<M>, key: u64) {
         if src.has_gaussian() || sen.has_gaussian() {
             self.exact = Some(Exact {
                 key,
@@ -57,7 +52,6 @@ impl Ends {
                 rev_src: Cvec::zeros(src.len()),
             });
         }
-        self
     }
 
     /// Starts the draws of global path `n` (with the exact attenuation; else nothing).
@@ -79,13 +73,13 @@ impl<M: Medium, P: PhaseFunction> Connector<'_, M, P> {
     /// (`NearField::Fitted`) for a scene that asks for `Exact`. No effect without Gaussian beams
     /// or with another model.
     pub(crate) fn with_exact_attenuation(mut self, seed: u64) -> Self {
-        let near_field = self.scene.near_field();
-        self.sources.set_near_field(near_field);
-        self.sensors.set_near_field(near_field);
-        if near_field == speckle_endpoints::NearField::Exact {
+        let exact = speckle_endpoints::NearField::Exact;
+        if self.scene.near_field() == exact {
+            // `for_tile` gave the endpoints the control variate alone.
+            self.sources.set_near_field(exact);
+            self.sensors.set_near_field(exact);
             let key = speckle_stats::rng::derive_seed(seed, NEAR_FIELD_KEY);
-            let ends = std::mem::replace(&mut self.ends, Ends::new(&self.sources, &self.sensors));
-            self.ends = ends.with_exact(&self.sources, &self.sensors, key);
+            self.ends.enable_exact(&self.sources, &self.sensors, key);
             if self.ends.exact.is_some() {
                 self.b = vec![Complex64::new(0.0, 0.0); self.a.len()];
             }
