@@ -52,6 +52,10 @@ fn plan_reports_and_refuses() {
     let o = speckle(d, &["plan", "p.toml", "--paths", "2000", "--pair", "5"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--pair"), "{}", stderr(&o));
+    // A pilot of fewer than 2 paths has no standard error.
+    let o = speckle(d, &["plan", "p.toml", "--paths", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--paths"), "{}", stderr(&o));
     // With [motion]: the pilot's decorrelation time.
     write(
         d,

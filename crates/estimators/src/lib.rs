@@ -77,7 +77,7 @@ pub use field_sequences::{
     DISPLACEMENT_KEY, FieldSequence, MAX_SEQUENCE_VALUES, MAX_TIMES, render_field_sequence,
 };
 pub use fields::{FieldEstimate, FieldOptions, FieldShard, render_fields, render_fields_shard};
-pub use plan::{PairPlan, crossing, pilot_correlation, render_plan};
+pub use plan::{PairPlan, crossing, pilot_correlation, render_plan, tilt_axes};
 pub use records::{Derivative, Parameters, PathRecords, Record, Replayed};
 // The types every caller of the estimators handles, defined in the crates below.
 pub use speckle_endpoints::{Pair, Sensor, Source};

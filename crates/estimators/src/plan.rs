@@ -21,7 +21,7 @@
 use crate::{Coherence, CovarianceOptions, EstimatorError, Progress, Scene, render_intensity_with};
 use glam::DVec3;
 use speckle_endpoints::{Pair, Sensor, Source};
-use speckle_medium::Medium;
+use speckle_medium::{Dimension, Medium};
 use speckle_paths::{PathFactor, Vertex};
 use speckle_phase::PhaseFunction;
 
@@ -195,6 +195,19 @@ pub fn pilot_correlation<M: Medium + Clone, P: PhaseFunction + Clone>(
             Ok((c * c + sn * sn) / (c0 * c0))
         })
         .collect()
+}
+
+/// Two axes perpendicular to the direction `d` of a plane wave or far-field sensor of `scene`,
+/// along which [`PairPlan::memory_halfwidth`] and [`PairPlan::grain_halfwidth`] tilt it: any
+/// orthonormal pair in 3D; in flatland the one in-plane perpendicular, twice.
+pub fn tilt_axes<M: Medium, P: PhaseFunction>(scene: &Scene<M, P>, d: DVec3) -> [DVec3; 2] {
+    if scene.medium().dimension() == Dimension::Two {
+        let e = DVec3::new(-d.y, d.x, 0.0);
+        [e, e]
+    } else {
+        let (a, b) = d.any_orthonormal_pair();
+        [a, b]
+    }
 }
 
 /// The angle `s` where the curve `(s_i, c_i)` (increasing `s`) first falls to `level`, by

@@ -11,6 +11,9 @@
 //!   scenes, seeds or renders, overlapping shards, and naming missing ones by index.
 //! - temporal correlations of moving scatterers with what experiments read from them (`g1`,
 //!   `g2`, the speckle contrast): [`temporal`](mod@temporal).
+//! - predictions before rendering from a cheap pilot of one pair (`speckle plan`): the paths a
+//!   target error needs, the memory effect, the speckle grain and the decorrelation time:
+//!   [`plan`](mod@plan).
 //!
 //! Design decision: a shard is not a run of fewer paths but a range of the single run's own
 //! work units, and it keeps each unit's result (each batch's sums), so that a merge replays the
@@ -27,12 +30,14 @@ mod finite;
 pub mod fit;
 mod identity;
 mod merge;
+pub mod plan;
 mod read;
 pub mod temporal;
 
 pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
+pub use plan::{Plan, plan};
 pub use read::MAX_HEADER_BYTES;
 pub use temporal::{Temporal, temporal};
 

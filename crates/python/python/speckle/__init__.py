@@ -78,6 +78,7 @@ __all__ = [
     "load",
     "mean",
     "merge",
+    "plan",
     "read_shard",
     "save_shard",
     "single",
@@ -842,6 +843,50 @@ def mean(scene: SceneLike) -> MeanResult:
     """The speckle mean ``E[u]`` of every pair, in closed form (Eq. 20)."""
     s = load(scene)
     return _result(s, _speckle.mean(s._p))  # type: ignore[return-value]
+
+
+def plan(
+    scene: SceneLike,
+    paths: Optional[int] = None,
+    pair: int = 0,
+    *,
+    seed: Optional[int] = None,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Predictions before rendering from cheap pilots of pair ``pair`` (``speckle plan``, whose
+    numbers it returns): ``paths`` paths per pilot (default: the smaller of ``render.paths`` and
+    20 000) from the random streams of ``seed`` (default ``render.seed``). Returns a dict of
+    plain floats, lists and ``None``; angles in radians, times in the scene's time unit
+    (``units["time"]``), intensities in the absolute units of the renders:
+
+    - ``pair``, ``paths``: the pair and the paths of each pilot;
+    - ``intensity``, ``intensity_stderr``, ``relative_error``: the pilot's ``C[j, j]`` (a
+      detector's reading), its standard error and their ratio; ``paths_for_1_percent``,
+      ``paths_for_5_percent``: the paths those relative errors need (``1 / sqrt(N)``);
+    - ``spatial``: ``"predicted"`` for a plane-wave source and a far-field sensor, else
+      ``"detector"`` or ``"other_kinds"`` (and the keys below are ``None``);
+    - ``memory_axes``, ``grain_axes``: two unit tilt axes (``[x, y, z]``) of the source and of
+      the sensor; ``memory_gaussian_rad``, ``grain_gaussian_rad``: along each, the tilt of both
+      source and sensor (memory effect) and the move of the sensor (grain) where the intensity
+      correlation falls to 1/2, from the Gaussian of the weighted second moments of where paths
+      enter and leave; ``memory_pilot_rad``, ``grain_pilot_rad``: the same along the first axis
+      from the pilot's own correlation curve (``None`` beyond 16 times the Gaussian's);
+      ``sensor_spacing_rad`` (half the grain) and ``max_tilt_rad`` (three memory half-widths):
+      what they suggest;
+    - with ``[motion]`` (not for detectors; else ``None``): ``lags`` (0 and the scene's positive
+      lags), ``g1`` (the pilot's ``|g1| = |C(t)| / C(0)`` there), ``tau_c`` (where it first falls
+      to ``1/e``, interpolated between lags; ``None`` if it stays above) and ``suggested_lags``
+      (``[tau_c / 10, 5 tau_c]``);
+    - ``units``: the scene's declared units, ``{"length": ..., "time": ...}``.
+
+    A ``pair`` beyond the scene's pairs, or fewer than 2 ``paths``, raises :class:`SceneError`
+    (a ``ValueError``) naming ``pair`` or ``paths``.
+
+    >>> p = speckle.plan("scenes/dcs.toml")          # doctest: +SKIP
+    >>> p["tau_c"], p["units"]["time"]               # 4.48e-06 s
+    """
+    s = _load_with(scene, dict(seed=seed))
+    return _speckle.plan(s._p, paths, pair, threads)
 
 
 def merge(shards: Iterable[Union[Shard, PathLike]]) -> Result:

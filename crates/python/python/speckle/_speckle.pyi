@@ -114,6 +114,12 @@ def fit(
     threads: Optional[int] = None,
     force: bool = False,
 ) -> Dict[str, Any]: ...
+def plan(
+    problem: Problem,
+    paths: Optional[int] = None,
+    pair: int = 0,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]: ...
 def map(
     problem: Problem, threads: Optional[int] = None, force: bool = False
 ) -> Dict[str, Any]: ...
