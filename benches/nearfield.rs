@@ -4,8 +4,9 @@
 //! ratio of the two times is the cost of the aperture integrals.
 //!
 //! - `nearfield/covariance/{far,gaussian}/<phase>/J=<pairs>`: `render_covariance` of 2 sources
-//!   x 8 sensors (`J = 16`), forward and reversed paths, 4096 paths, for an isotropic amplitude
-//!   (one vMF lobe) and a 3-lobe vMF amplitude; throughput in paths.
+//!   x 8 sensors (`J = 16`) and of 8 x 15 (`J = 120`, the transmission scene's shape),
+//!   forward and reversed paths, 4096 paths, for an isotropic amplitude (one vMF lobe) and a
+//!   3-lobe vMF amplitude; throughput in paths.
 //! - `nearfield/fields/{far,gaussian}/<phase>/J=<pairs>`: `render_fields` (Sec. 7) of 2 sources
 //!   x 8 and x 64 sensors (`J = 16, 128`), 4 realizations of 1024 paths, without the mean;
 //!   throughput in paths. Fields cost `O(S + V)` connections and `O(J)` pair updates per
@@ -34,15 +35,15 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 fn scene(gaussian: bool, phase: Phase) -> Scene<HomogeneousBox, Phase> {
-    scene_with(gaussian, phase, 8)
+    scene_with(gaussian, phase, 2, 8)
 }
 
-/// 2 sources and `nv` sensors (foci half a wavelength apart).
-fn scene_with(gaussian: bool, phase: Phase, nv: usize) -> Scene<HomogeneousBox, Phase> {
+/// `ns` sources (foci a wavelength apart) and `nv` sensors (half a wavelength apart).
+fn scene_with(gaussian: bool, phase: Phase, ns: usize, nv: usize) -> Scene<HomogeneousBox, Phase> {
     let b = Aabb::centered(DVec3::ZERO, DVec3::new(20.0, 20.0, 8.0)).unwrap();
     let m = HomogeneousBox::from_mean_free_path(b, 4.0, 1.0).unwrap();
     let beam = |f: DVec3| GaussianBeam::new("bench", f, DVec3::Z, 16.0).unwrap();
-    let sources: Vec<Source> = (0..2)
+    let sources: Vec<Source> = (0..ns)
         .map(|i| {
             if gaussian {
                 Source::GaussianBeam(beam(DVec3::new(i as f64, 0.0, -4.0)))
@@ -60,7 +61,7 @@ fn scene_with(gaussian: bool, phase: Phase, nv: usize) -> Scene<HomogeneousBox, 
             }
         })
         .collect();
-    Scene::new(m, phase, 1.0, sources, sensors, Pair::all(2, nv)).unwrap()
+    Scene::new(m, phase, 1.0, sources, sensors, Pair::all(ns, nv)).unwrap()
 }
 
 /// The strategies with `beams`.
@@ -80,14 +81,16 @@ fn covariance(c: &mut Criterion) {
         sampling: sampling(BeamStrategy::Off),
     };
     for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
-        for (kind, gaussian) in [("far", false), ("gaussian", true)] {
-            let s = scene(gaussian, phase.clone());
-            let mut g = c.benchmark_group(format!("nearfield/covariance/{kind}/{name}"));
-            g.sample_size(10).throughput(Throughput::Elements(paths));
-            g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
-                b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))
-            });
-            g.finish();
+        for (ns, nv) in [(2, 8), (8, 15)] {
+            for (kind, gaussian) in [("far", false), ("gaussian", true)] {
+                let s = scene_with(gaussian, phase.clone(), ns, nv);
+                let mut g = c.benchmark_group(format!("nearfield/covariance/{kind}/{name}"));
+                g.sample_size(10).throughput(Throughput::Elements(paths));
+                g.bench_function(BenchmarkId::from_parameter(format!("J={}", s.len())), |b| {
+                    b.iter(|| black_box(render_covariance(&s, &opts, &NoProgress).unwrap()))
+                });
+                g.finish();
+            }
         }
     }
     let s = scene(true, lobed());
@@ -128,7 +131,7 @@ fn fields(c: &mut Criterion) {
     for (name, phase) in [("isotropic", Phase::Isotropic), ("vmf3", lobed())] {
         for nv in [8, 64] {
             for (kind, gaussian) in [("far", false), ("gaussian", true)] {
-                let s = scene_with(gaussian, phase.clone(), nv);
+                let s = scene_with(gaussian, phase.clone(), 2, nv);
                 let mut g = c.benchmark_group(format!("nearfield/fields/{kind}/{name}"));
                 g.sample_size(10)
                     .throughput(Throughput::Elements(realizations as u64 * per));

@@ -42,7 +42,8 @@
 //! estimate), so they keep Eq. 25.
 
 use crate::gaussian::{GaussianBeam, near};
-use crate::kernels::{Endpoints, Legs};
+use crate::kernels::{BoxMedium, Endpoints, Legs};
+use crate::plane;
 use crate::{Kind, Side};
 use glam::DVec3;
 use num_complex::Complex64;
@@ -107,6 +108,90 @@ impl Fit {
     }
 }
 
+/// What the connections of one Gaussian beam need at every point, prepared once per endpoint
+/// set: its lens (the mask's normaliser), and the five directions back along which the fit
+/// probes the optical depth (the axis, and the axis tilted by `eps` towards and away from each
+/// tangent), with the box medium's coefficients for each.
+#[derive(Debug, Clone)]
+pub(crate) struct Prepared {
+    lens: near::Lens,
+    axis: DVec3,
+    tangents: [DVec3; 2],
+    /// Tangents in use: 2 in 3D, 1 in flatland.
+    n_tangents: usize,
+    /// The central differences' factors: `1 / (2 sin eps)` for the slope, and
+    /// `1 / (2 (cos eps - 1) n)` for the curvature averaged over the `n` tangents.
+    slope_scale: f64,
+    curvature_scale: f64,
+    /// The directions back from the point: `-a`, then `-(cos eps a +/- sin eps t)` per tangent.
+    back: [DVec3; 5],
+    /// Per direction, the box kernels' coefficients `(q, r)` per axis
+    /// (`plane::far_coefficients`), where the medium has a box form.
+    coefficients: Option<[[(f64, f64); 3]; 5]>,
+}
+
+impl Prepared {
+    /// The preparation of `b` in a medium of dimension `three` whose box form is `geometry`.
+    pub(crate) fn new(b: &GaussianBeam, three: bool, geometry: Option<BoxMedium>) -> Self {
+        let a = b.axis;
+        let eps = (1.0 / (b.concentration + 1.0).sqrt()).min(0.5);
+        let (se, ce) = eps.sin_cos();
+        let (tangents, n_tangents) = if three {
+            let (t1, t2) = a.any_orthonormal_pair();
+            ([t1, t2], 2)
+        } else {
+            ([DVec3::new(-a.y, a.x, 0.0), DVec3::ZERO], 1)
+        };
+        let mut back = [-a; 5];
+        for (j, t) in tangents.iter().enumerate() {
+            back[1 + 2 * j] = -(ce * a + se * *t);
+            back[2 + 2 * j] = -(ce * a - se * *t);
+        }
+        let coefficients = geometry.map(|g| {
+            back.map(|e| {
+                std::array::from_fn(|c| plane::far_coefficients(e[c], g.half[c], g.half_sigma_t))
+            })
+        });
+        Self {
+            lens: near::Lens::of(b, three),
+            axis: a,
+            tangents,
+            n_tangents,
+            slope_scale: 1.0 / (2.0 * se),
+            curvature_scale: 1.0 / (2.0 * (ce - 1.0) * n_tangents as f64),
+            back,
+            coefficients,
+        }
+    }
+
+    /// The optical half-depths from `x` back along the five directions ([`Endpoints::half_depth`],
+    /// bitwise; by the prepared coefficients where the box form holds `x`).
+    #[inline]
+    fn half_depths<M: Medium>(&self, set: &Endpoints<'_, M>, x: DVec3) -> [f64; 5] {
+        match (set.geometry(), &self.coefficients) {
+            (Some(g), Some(q)) if g.holds(x) => {
+                let c = g.center - x;
+                q.map(|q| {
+                    let e = [
+                        c.x * q[0].0 + q[0].1,
+                        c.y * q[1].0 + q[1].1,
+                        c.z * q[2].0 + q[2].1,
+                    ];
+                    -e.into_iter().fold(f64::NEG_INFINITY, f64::max).min(0.0)
+                })
+            }
+            _ => std::array::from_fn(|j| {
+                let used = j < 1 + 2 * self.n_tangents;
+                if used {
+                    set.half_depth(x, self.back[j])
+                } else {
+                    0.0
+                }
+            }),
+        }
+    }
+}
+
 /// `s(mu) = sum_m e^(l_m + gamma_m mu)` of vMF amplitude lobes `(gamma_m, l_m)`.
 #[inline]
 fn amplitude(lobes: &[(f64, f64)], mu: f64) -> f64 {
@@ -124,35 +209,29 @@ impl<M: Medium> Endpoints<'_, M> {
         }
     }
 
-    /// The control variate's attenuation of beam `b` at `x` (module docs of `attenuation.rs`):
-    /// `h` fitted about the axis from five optical depths, constrained to `T_cv <= 1`.
-    fn fit(&self, b: &GaussianBeam, x: DVec3) -> Fit {
-        let a = b.axis;
-        let h0 = self.half_depth(x, -a);
-        let eps = (1.0 / (b.concentration + 1.0).sqrt()).min(0.5);
-        let (se, ce) = eps.sin_cos();
-        let tangents: &[DVec3] = if self.is_three() {
-            let (t1, t2) = a.any_orthonormal_pair();
-            &[t1, t2]
-        } else {
-            &[DVec3::new(-a.y, a.x, 0.0)]
-        };
+    /// The control variate's attenuation of the beam prepared as `p` at `x` (module docs of
+    /// `attenuation.rs`): `h` fitted about the axis from five optical depths, constrained to
+    /// `T_cv <= 1`.
+    fn fit(&self, p: &Prepared, x: DVec3) -> Fit {
+        let a = p.axis;
+        let h = p.half_depths(self, x);
+        let h0 = h[0];
+        let tangents = &p.tangents[..p.n_tangents];
         let (mut beta_t, mut curvature) = (DVec3::ZERO, 0.0);
-        for &t in tangents {
-            let hp = self.half_depth(x, -(ce * a + se * t));
-            let hm = self.half_depth(x, -(ce * a - se * t));
-            beta_t += (hp - hm) / (2.0 * se) * t;
-            curvature += (hp + hm - 2.0 * h0) / (2.0 * (ce - 1.0));
+        for (j, &t) in tangents.iter().enumerate() {
+            let (hp, hm) = (h[1 + 2 * j], h[2 + 2 * j]);
+            beta_t += ((hp - hm) * p.slope_scale) * t;
+            curvature += (hp + hm - 2.0 * h0) * p.curvature_scale;
         }
         // No growth away from the axis (beta_a <= 0), and a tangential slope small enough that
         // T_cv <= 1 in every direction: max_psi (c0 - beta . psi) = -h0 + beta_a + |beta| <= 0,
         // that is |beta_t|^2 <= h0^2 - 2 h0 beta_a. (Near a face a tilted ray may leave sooner
         // than the axial one: an unconstrained fit would then grow exponentially backwards.)
-        let beta_a = (curvature / tangents.len() as f64).min(0.0);
-        let limit = (h0 * h0 - 2.0 * h0 * beta_a).max(0.0).sqrt();
-        let slope = beta_t.length();
-        if slope > limit {
-            beta_t *= limit / slope;
+        let beta_a = curvature.min(0.0);
+        let limit2 = (h0 * h0 - 2.0 * h0 * beta_a).max(0.0);
+        let slope2 = beta_t.length_squared();
+        if slope2 > limit2 {
+            beta_t *= (limit2 / slope2).sqrt();
         }
         let beta = beta_t + beta_a * a;
         // Exact at the axis: c0 - beta . a = -h0.
@@ -162,19 +241,20 @@ impl<M: Medium> Endpoints<'_, M> {
         }
     }
 
-    /// The weighted aperture of beam `b` at `x` (Eqs. 26-27) with the attenuation of the
-    /// endpoints' near-field model: Eq. 25's `e^(-tau)` along the axis ([`NearField::Paper`]),
-    /// else the control variate `T_cv` (whose fit `legs` keeps for the draws of
-    /// [`NearField::Exact`]).
+    /// The weighted aperture of beam `b` (endpoint `i`) at `x` (Eqs. 26-27) with the
+    /// attenuation of the endpoints' near-field model: Eq. 25's `e^(-tau)` along the axis
+    /// ([`NearField::Paper`]), else the control variate `T_cv` (whose fit `legs` keeps for the
+    /// draws of [`NearField::Exact`]).
     pub(crate) fn gaussian_aperture(&self, i: usize, b: &GaussianBeam, x: DVec3, legs: &mut Legs) {
-        let (three, k) = (self.is_three(), self.wavenumber());
+        let k = self.wavenumber();
+        let p = self.prepared(i);
         if self.near_field() == NearField::Paper {
             let tau = self.half_depth(x, -b.axis);
-            legs.aperture[i] = near::aperture_at(b, three, k, x, tau);
+            legs.aperture[i] = p.lens.at(b, k, x, tau);
             return;
         }
-        let f = self.fit(b, x);
-        let mut ap = near::aperture_at(b, three, k, x, -f.c0);
+        let f = self.fit(p, x);
+        let mut ap = p.lens.at(b, k, x, -f.c0);
         for (m, beta) in ap.mu.iter_mut().zip(f.beta.to_array()) {
             m.re -= beta;
         }

@@ -234,15 +234,47 @@ impl GaussianBeam {
 /// docs) and in log form until the last exponential.
 pub(crate) mod near {
     use super::GaussianBeam;
+    pub(crate) use super::batch::{Batch, integral};
     use glam::DVec3;
     use num_complex::Complex64;
-    use speckle_vmf::{CircleVmf, ComplexVmf};
+    use speckle_vmf::{Aperture, CircleAperture, CircleVmf, ComplexVmf};
     use std::f64::consts::{PI, TAU};
 
-    /// The weighted aperture `a~(w; x)` of `beam` at the medium point `x` (Eqs. 26-27) with the
-    /// field attenuation `e^(-tau)` along the axis (the constant-attenuation approximation of
-    /// Eq. 25), with the dimension's unit-integral mask; a flatland aperture is stored as a 3D
-    /// one with `mu_z = 0` (integrated over the circle by [`ln_integral`]).
+    /// A beam's aperture in the medium's dimension (its mask's normaliser computed once).
+    #[derive(Debug, Clone, Copy)]
+    pub(crate) enum Lens {
+        Sphere(Aperture),
+        Circle(CircleAperture),
+    }
+
+    impl Lens {
+        /// The lens of `beam` in 3D (`three`) or flatland.
+        pub(crate) fn of(beam: &GaussianBeam, three: bool) -> Self {
+            if three {
+                Self::Sphere(beam.aperture())
+            } else {
+                Self::Circle(beam.circle_aperture())
+            }
+        }
+
+        /// The weighted aperture `a~(w; x)` of `beam` (this lens's beam) at the medium point
+        /// `x` (Eqs. 26-27) with the field attenuation `e^(-tau)` along the axis (the
+        /// constant-attenuation approximation of Eq. 25), with the dimension's unit-integral
+        /// mask; a flatland aperture is stored as a 3D one with `mu_z = 0` (integrated over the
+        /// circle by [`ln_integral`]).
+        pub(crate) fn at(&self, beam: &GaussianBeam, k: f64, x: DVec3, tau: f64) -> ComplexVmf {
+            match self {
+                Self::Sphere(a) => a.weighted(k, beam.focus, x, tau),
+                Self::Circle(a) => {
+                    let c = a.weighted(k, beam.focus.truncate(), x.truncate(), tau);
+                    ComplexVmf::new(c.log_scale, [c.mu[0], c.mu[1], Complex64::new(0.0, 0.0)])
+                }
+            }
+        }
+    }
+
+    /// The weighted aperture of `beam` at `x` ([`Lens::at`]; the tests' shorthand).
+    #[cfg(test)]
     pub(crate) fn aperture_at(
         beam: &GaussianBeam,
         three: bool,
@@ -250,14 +282,7 @@ pub(crate) mod near {
         x: DVec3,
         tau: f64,
     ) -> ComplexVmf {
-        if three {
-            beam.weighted(k, x, tau)
-        } else {
-            let c = beam
-                .circle_aperture()
-                .weighted(k, beam.focus.truncate(), x.truncate(), tau);
-            ComplexVmf::new(c.log_scale, [c.mu[0], c.mu[1], Complex64::new(0.0, 0.0)])
-        }
+        Lens::of(beam, three).at(beam, k, x, tau)
     }
 
     /// `ln int h(w) dw` over the sphere (Eq. 29) or, in flatland, the circle (`2 pi I_0`).
@@ -270,22 +295,28 @@ pub(crate) mod near {
         }
     }
 
-    /// The exact connection `Upsilon(x, w) = int a~(psi; x) s(psi . w) dpsi = sum_m e^(l_m)
-    /// int a~(psi) e^(gamma_m w . psi) dpsi` (Eqs. 15-16, exact for a known outgoing source-form
-    /// direction `w`: every `B >= 2` vertex and single scattering towards a non-Gaussian
-    /// endpoint). `aperture` comes from [`aperture_at`].
-    pub(crate) fn upsilon(
+    /// Queues on `batch` for `owner` the lobes of the exact connection `factor Upsilon(x, w)`,
+    /// `Upsilon(x, w) = int a~(psi; x) s(psi . w) dpsi = sum_m e^(l_m) int a~(psi)
+    /// e^(gamma_m w . psi) dpsi` (Eqs. 15-16, exact for a known outgoing source-form direction
+    /// `w`: every `B >= 2` vertex and single scattering towards a non-Gaussian endpoint).
+    /// `aperture` comes from [`aperture_at`].
+    #[inline]
+    pub(crate) fn push_upsilon(
+        batch: &mut Batch,
+        owner: usize,
+        factor: Complex64,
         aperture: &ComplexVmf,
-        three: bool,
         lobes: &[(f64, f64)],
         w: DVec3,
-    ) -> Complex64 {
-        lobes
-            .iter()
-            .map(|&(gamma, l)| {
-                (l + ln_integral(&aperture.mul(&ComplexVmf::real(0.0, gamma, w)), three)).exp()
-            })
-            .sum()
+        sink: &mut impl FnMut(usize, Complex64),
+    ) {
+        for &(gamma, l) in lobes {
+            let mut mu = aperture.mu;
+            for (m, d) in mu.iter_mut().zip(w.to_array()) {
+                m.re += gamma * d;
+            }
+            batch.push(owner, factor, aperture.log_scale + l, mu, sink);
+        }
     }
 
     /// `ln int a(psi) e^(gamma w . psi) dpsi` as a complex vMF of `w` (Eqs. 31-32), linearised
@@ -336,16 +367,76 @@ pub(crate) mod near {
         Some(ComplexVmf::new(ln_integral(&shifted, false) - at, mu))
     }
 
-    /// Single scattering between a Gaussian source and a Gaussian sensor (Eq. 18, notes Sec.
-    /// 4.5): `sum_m e^(l_m) int a~_v(w') [int a~_s(psi) e^(-gamma_m psi . w') dpsi] dw'` for
-    /// the source's aperture `a_s` and the sensor's source-form aperture `a_v` (its plane-wave
-    /// direction `w'` is minus the viewing direction `v^`, so the lobe `e^(gamma_m psi . v^)`
-    /// reads `e^(-gamma_m psi . w')`). An isotropic lobe (`gamma_m = 0`) is exact, the product
-    /// of the two fields; any other lobe takes the convolution approximation of Eqs. 31-32
-    /// about the viewing axis `view` (the paper's choice, the centre of the viewing aperture),
-    /// exact at `view` (`vmf::convolve_approx`'s bound applies). Near its branch point
-    /// (`beta_o` small next to `|mu|`), where the linearised convolution would exceed the bound
-    /// that the exact one obeys, the convolution is frozen at its exact value at `view`.
+    /// The source's side of one lobe of single scattering between two Gaussian beams
+    /// ([`push_single_both`]): the convolution of the source's aperture with the lobe, as a
+    /// complex vMF of the sensor's plane-wave direction, or frozen at its value at the viewing
+    /// axis (log form).
+    #[derive(Debug, Clone, Copy)]
+    pub(crate) enum Convolved {
+        /// `int a~_s(psi) e^(-gamma psi . w') dpsi` as a complex vMF of `w'`.
+        Vmf(ComplexVmf),
+        /// Its log at the viewing axis, used for every `w'`.
+        Frozen(Complex64),
+    }
+
+    /// The source side of lobe `gamma != 0` for the source aperture `a_s` and viewing axis
+    /// `view` (see [`push_single_both`]).
+    pub(crate) fn convolved(a_s: &ComplexVmf, three: bool, gamma: f64, view: DVec3) -> Convolved {
+        match convolve(a_s, three, gamma, view) {
+            // c is a vMF of v^ = -w': negate its parameter.
+            Some(Ok(c)) => Convolved::Vmf(ComplexVmf::new(c.log_scale, c.mu.map(|m| -m))),
+            Some(Err(at)) => Convolved::Frozen(at),
+            None => Convolved::Frozen(ln_integral(
+                &a_s.mul(&ComplexVmf::real(0.0, gamma, view)),
+                three,
+            )),
+        }
+    }
+
+    /// Queues on `batch` for `owner` the lobes of single scattering between a Gaussian source
+    /// and a Gaussian sensor (Eq. 18, notes Sec. 4.5): `sum_m e^(l_m) int a~_v(w') [int a~_s(psi)
+    /// e^(-gamma_m psi . w') dpsi] dw'` for the source's aperture `a_s` and the sensor's
+    /// source-form aperture `a_v` (its plane-wave direction `w'` is minus the viewing direction
+    /// `v^`, so the lobe `e^(gamma_m psi . v^)` reads `e^(-gamma_m psi . w')`). An isotropic
+    /// lobe (`gamma_m = 0`) is exact, `e^(l_m)` (`scale(m)`) times the product of the two
+    /// fields (`fields()`: the integrals of `a_s` and `a_v`); any other lobe takes the convolution approximation of
+    /// Eqs. 31-32 about the viewing axis (the paper's choice, the centre of the viewing
+    /// aperture), exact there, given by `source(m)` ([`convolved`] of lobe `m`; callers cache
+    /// it per source, lobe and viewing axis). Near its branch point (`beta_o` small next to
+    /// `|mu|`), where the linearised convolution would exceed the bound that the exact one
+    /// obeys, the convolution is frozen at its exact value at the viewing axis.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) fn push_single_both(
+        batch: &mut Batch,
+        owner: usize,
+        a_v: &ComplexVmf,
+        lobes: &[(f64, f64)],
+        scale: impl Fn(usize) -> f64,
+        mut source: impl FnMut(usize) -> Convolved,
+        mut fields: impl FnMut() -> (Complex64, Complex64),
+        sink: &mut impl FnMut(usize, Complex64),
+    ) {
+        let one = Complex64::new(1.0, 0.0);
+        for (m, &(gamma, l)) in lobes.iter().enumerate() {
+            if gamma == 0.0 {
+                let (field_s, field_v) = fields();
+                batch.push_value(owner, scale(m) * field_s * field_v, sink);
+                continue;
+            }
+            match source(m) {
+                Convolved::Vmf(c) => {
+                    let mu = std::array::from_fn(|j| a_v.mu[j] + c.mu[j]);
+                    batch.push(owner, one, a_v.log_scale + c.log_scale + l, mu, sink);
+                }
+                Convolved::Frozen(at) => batch.push_value(owner, (l + at).exp() * fields().1, sink),
+            }
+        }
+    }
+
+    /// Single scattering between a Gaussian source and a Gaussian sensor viewing along `view`
+    /// ([`push_single_both`]) alone (the tests' reference).
+    #[cfg(test)]
     pub(crate) fn single_both(
         a_s: &ComplexVmf,
         a_v: &ComplexVmf,
@@ -353,31 +444,25 @@ pub(crate) mod near {
         lobes: &[(f64, f64)],
         view: DVec3,
     ) -> Complex64 {
-        let (mut ln_s, mut ln_v) = (None, None);
-        let mut field_s = || *ln_s.get_or_insert_with(|| ln_integral(a_s, three));
-        let mut field_v = || *ln_v.get_or_insert_with(|| ln_integral(a_v, three));
-        lobes
-            .iter()
-            .map(|&(gamma, l)| {
-                if gamma == 0.0 {
-                    return (l + field_s() + field_v()).exp();
-                }
-                match convolve(a_s, three, gamma, view) {
-                    Some(Ok(c)) => {
-                        // c is a vMF of v^ = -w': negate its parameter.
-                        let c = ComplexVmf::new(c.log_scale, c.mu.map(|m| -m));
-                        (l + ln_integral(&a_v.mul(&c), three)).exp()
-                    }
-                    Some(Err(at)) => (l + at + field_v()).exp(),
-                    None => {
-                        let at = ln_integral(&a_s.mul(&ComplexVmf::real(0.0, gamma, view)), three);
-                        (l + at + field_v()).exp()
-                    }
-                }
-            })
-            .sum()
+        let mut sum = Complex64::new(0.0, 0.0);
+        let sink = &mut |_, v| sum += v;
+        let mut batch = Batch::new(three);
+        push_single_both(
+            &mut batch,
+            0,
+            a_v,
+            lobes,
+            |m| lobes[m].1.exp(),
+            |m| convolved(a_s, three, lobes[m].0, view),
+            || (integral(a_s, three), integral(a_v, three)),
+            sink,
+        );
+        batch.flush(sink);
+        sum
     }
 }
+
+mod batch;
 
 #[cfg(test)]
 pub(crate) mod tests;

@@ -184,6 +184,14 @@ pub struct Endpoints<'m, M> {
     gaussian: bool,
     /// How Gaussian connections attenuate their plane waves ([`Endpoints::set_near_field`]).
     near_field: crate::NearField,
+    /// Per endpoint, the index of its axis among the distinct axes of the set's Gaussian beams
+    /// (single scattering between beams depends on the sensor's through its axis only); `0`
+    /// for the others.
+    axis_class: Vec<u32>,
+    /// The number of distinct axes.
+    axis_classes: usize,
+    /// Per endpoint, a Gaussian beam's prepared lens and fit directions; `None` for the others.
+    prepared: Vec<Option<crate::attenuation::Prepared>>,
     id: u64,
 }
 
@@ -292,13 +300,37 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                 run.kind.push(&g, k, e);
             }
         }
+        let mut classes = std::collections::HashMap::new();
+        let axis_class = ends
+            .iter()
+            .map(|e| match e {
+                Kind::Gaussian(b) => {
+                    let next = classes.len() as u32;
+                    *classes
+                        .entry(b.axis.to_array().map(f64::to_bits))
+                        .or_insert(next)
+                }
+                _ => 0,
+            })
+            .collect();
+        let three = medium.dimension() == Dimension::Three;
+        let prepared = ends
+            .iter()
+            .map(|e| match e {
+                Kind::Gaussian(b) => Some(crate::attenuation::Prepared::new(b, three, geometry)),
+                _ => None,
+            })
+            .collect();
         Self {
             medium,
             k,
+            prepared,
+            axis_class,
+            axis_classes: classes.len(),
             gaussian: ends.iter().any(|e| matches!(e, Kind::Gaussian(_))),
             ends,
             geometry,
-            three: medium.dimension() == Dimension::Three,
+            three,
             side,
             runs,
             near_field: crate::NearField::Paper,
@@ -333,6 +365,14 @@ impl<'m, M: Medium> Endpoints<'m, M> {
     /// The box form of the medium, when the kernels use it.
     pub(crate) fn geometry(&self) -> Option<BoxMedium> {
         self.geometry
+    }
+
+    /// Gaussian endpoint `i`'s prepared lens and fit directions.
+    ///
+    /// # Panics
+    /// If endpoint `i` is not a Gaussian beam.
+    pub(crate) fn prepared(&self, i: usize) -> &crate::attenuation::Prepared {
+        self.prepared[i].as_ref().expect("a Gaussian endpoint")
     }
 
     /// The medium.
@@ -518,17 +558,10 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         let n = legs.len();
         let (re, im) = (&mut out_re[..n], &mut out_im[..n]);
         if self.gaussian {
+            // Leg endpoints directly; every beam and lobe queued on one batch of integrals.
             for i in 0..n {
                 let x = match &self.ends[i] {
-                    Kind::Gaussian(_) => {
-                        let (w_in, w_out) = dirs(DVec3::ZERO);
-                        // Source form: the direction leaving x (a sensor's is minus the arrival).
-                        let w = match self.side {
-                            Side::Source => w_out,
-                            Side::Sensor => -w_in,
-                        };
-                        near::upsilon(&legs.aperture[i], self.three, lobes(phase), w)
-                    }
+                    Kind::Gaussian(_) => Complex64::new(0.0, 0.0),
                     _ => {
                         let (w_in, w_out) = dirs(legs.dir(i));
                         legs.amp(i) * phase.amplitude_between(w_in, w_out)
@@ -537,6 +570,24 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                 re[i] = x.re;
                 im[i] = x.im;
             }
+            let (w_in, w_out) = dirs(DVec3::ZERO);
+            // Source form: the direction leaving x (a sensor's is minus the arrival).
+            let w = match self.side {
+                Side::Source => w_out,
+                Side::Sensor => -w_in,
+            };
+            let (lobes, one) = (lobes(phase), Complex64::new(1.0, 0.0));
+            let sink = &mut |i: usize, v: Complex64| {
+                re[i] += v.re;
+                im[i] += v.im;
+            };
+            let mut batch = near::Batch::new(self.three);
+            for i in 0..n {
+                if let Kind::Gaussian(_) = &self.ends[i] {
+                    near::push_upsilon(&mut batch, i, one, &legs.aperture[i], lobes, w, sink);
+                }
+            }
+            batch.flush(sink);
             return;
         }
         for i in 0..n {
@@ -555,46 +606,8 @@ pub(crate) fn lobes<P: PhaseFunction>(phase: &P) -> &[(f64, f64)] {
         .expect("a Gaussian connection needs a phase with vMF lobes (check_near_field)")
 }
 
-impl<M: Medium> Endpoints<'_, M> {
-    /// The single-scattering value at the point `x1` both sets were just
-    /// [`connect`](Endpoints::connect)ed to, for source `s` of this set (its legs `in1`) and
-    /// sensor `v` of `sensors` (legs `out1`): `upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` for
-    /// leg endpoints (Eq. 41's integrand); with a Gaussian beam on one side, its exact
-    /// `Upsilon(x1, w)` towards (from) the other endpoint's leg direction times that leg's
-    /// throughput; with Gaussian beams on both sides, Eq. 18 with the convolution approximation
-    /// of Eqs. 31-32 for non-isotropic lobes (exact for isotropic ones; see
-    /// `gaussian::near::single_both`).
-    ///
-    /// # Panics
-    /// As [`Endpoints::scatter`], for a Gaussian endpoint whose phase has no vMF lobes.
-    pub fn single<P: PhaseFunction>(
-        &self,
-        in1: &Legs,
-        s: usize,
-        sensors: &Endpoints<'_, M>,
-        out1: &Legs,
-        v: usize,
-        phase: &P,
-    ) -> Complex64 {
-        let three = self.three;
-        match (&self.ends[s], &sensors.ends[v]) {
-            (Kind::Gaussian(_), Kind::Gaussian(bv)) => near::single_both(
-                &in1.aperture[s],
-                &out1.aperture[v],
-                three,
-                lobes(phase),
-                -bv.axis,
-            ),
-            (Kind::Gaussian(_), _) => {
-                near::upsilon(&in1.aperture[s], three, lobes(phase), out1.dir(v)) * out1.amp(v)
-            }
-            (_, Kind::Gaussian(_)) => {
-                in1.amp(s) * near::upsilon(&out1.aperture[v], three, lobes(phase), -in1.dir(s))
-            }
-            _ => in1.amp(s) * out1.amp(v) * phase.amplitude_between(in1.dir(s), out1.dir(v)),
-        }
-    }
-}
+mod single;
+pub use single::SingleScratch;
 
 #[cfg(test)]
 mod tests;

@@ -14,7 +14,7 @@
 use crate::{Coherence, Scene};
 use glam::DVec3;
 use num_complex::Complex64;
-use speckle_endpoints::{Endpoints, Legs};
+use speckle_endpoints::{Endpoints, Legs, SingleScratch};
 use speckle_medium::Medium;
 use speckle_phase::PhaseFunction;
 use std::ops::Range;
@@ -151,6 +151,24 @@ enum PairMap {
     Grid { sensors: usize },
     /// Listed pairs.
     List { source: Vec<u32>, sensor: Vec<u32> },
+}
+
+impl PairMap {
+    /// The local source and sensor of local pair `i`.
+    fn ends(&self, i: usize) -> (usize, usize) {
+        match self {
+            Self::Grid { sensors } => (i / sensors, i % sensors),
+            Self::List { source, sensor } => (source[i] as usize, sensor[i] as usize),
+        }
+    }
+
+    /// The number of pairs, with `sources` local sources.
+    fn len(&self, sources: usize) -> usize {
+        match self {
+            Self::Grid { sensors } => sources * sensors,
+            Self::List { source, .. } => source.len(),
+        }
+    }
 }
 
 /// Most entries `types * pairs` of the table of first-vertex amplitudes.
@@ -290,6 +308,8 @@ pub(crate) struct Connector<'s, M, P> {
     pub(crate) b: Vec<Complex64>,
     /// Scratch for [`Connector::push_moment`]: `(a + b) / 2` and `(a - b) / 2`.
     halves: (Vec<Complex64>, Vec<Complex64>),
+    /// Scratch for the single scattering of Gaussian beams ([`Endpoints::single_pairs`]).
+    single: SingleScratch,
 }
 
 impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
@@ -350,6 +370,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
             a: vec![],
             b: vec![],
             halves: Default::default(),
+            single: SingleScratch::default(),
         };
         let types = scene.phases().len();
         if c.sources.all_directional()
@@ -387,10 +408,7 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
 
     /// The local source and sensor of local pair `i`.
     pub(crate) fn pair_ends(&self, i: usize) -> (usize, usize) {
-        match &self.pairs {
-            PairMap::Grid { sensors } => (i / sensors, i % sensors),
-            PairMap::List { source, sensor } => (source[i] as usize, sensor[i] as usize),
-        }
+        self.pairs.ends(i)
     }
 
     /// Calls `f(i, s, v)` for every local pair `i` with local source `s` and sensor `v`.
@@ -442,26 +460,39 @@ impl<'s, M: Medium, P: PhaseFunction> Connector<'s, M, P> {
     /// Calls `emit(i, z F_i)` for every pair `i` of the tile, with the single-scattering
     /// values `F_i = upsilon(i -> x1) s(i -> v) upsilon(x1 -> v)` of the current path (Eq. 41's
     /// integrand, with the amplitude `s_ty` of the particle at `x1`).
-    fn single(&self, z: Complex64, emit: impl FnMut(usize, Complex64)) {
+    fn single(&mut self, z: Complex64, emit: impl FnMut(usize, Complex64)) {
         self.single_set(z, None, emit);
     }
 
     /// [`Connector::single`], with the exact attenuation's correction of draw set `set` added
     /// to the Gaussian beams' values when `set` is given.
-    fn single_set(&self, z: Complex64, set: Option<usize>, mut emit: impl FnMut(usize, Complex64)) {
+    fn single_set(
+        &mut self,
+        z: Complex64,
+        set: Option<usize>,
+        mut emit: impl FnMut(usize, Complex64),
+    ) {
         let (in1, out1) = (&self.ends.in1, &self.ends.out1);
         let table = self.first_amp.get(self.type1);
         let phase = &self.scene.phases()[self.type1];
         if self.sources.has_gaussian() || self.sensors.has_gaussian() {
-            // Aperture integrals (Eqs. 15-18): the endpoints' own single-scattering value.
-            let (src, sen) = (&self.sources, &self.sensors);
-            self.for_pairs(|i, s, v| {
-                let mut f = src.single(in1, s, sen, out1, v, phase);
+            // Aperture integrals (Eqs. 15-18): the endpoints' own single-scattering value, every
+            // pair's at once.
+            let (src, sen, pairs) = (&self.sources, &self.sensors, &self.pairs);
+            let n = pairs.len(src.len());
+            let each = (0..n).map(|i| {
+                let (s, v) = pairs.ends(i);
+                (i, s, v)
+            });
+            src.single_pairs(in1, sen, out1, phase, n, each, &mut self.single);
+            for (i, &f) in self.single.values().iter().enumerate() {
+                let (s, v) = pairs.ends(i);
+                let mut f = f;
                 if let Some(set) = set {
                     f += src.correct_single(in1, s, sen, out1, v, phase, set);
                 }
                 emit(i, z * f)
-            });
+            }
             return;
         }
         let f = |i: usize, s: usize, v: usize| {
