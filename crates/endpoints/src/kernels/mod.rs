@@ -186,12 +186,13 @@ pub struct Endpoints<'m, M> {
     near_field: crate::NearField,
     /// Per endpoint, the index of its axis among the distinct axes of the set's Gaussian beams
     /// (single scattering between beams depends on the sensor's through its axis only); `0`
-    /// for the others.
+    /// for the others; empty without Gaussian beams.
     axis_class: Vec<u32>,
     /// The number of distinct axes.
     axis_classes: usize,
-    /// Per endpoint, a Gaussian beam's prepared lens and fit directions; `None` for the others.
-    prepared: Vec<Option<crate::attenuation::Prepared>>,
+    /// Per endpoint, a Gaussian beam's prepared lens and fit directions; `None` for the others;
+    /// empty without Gaussian beams.
+    prepared: Vec<Option<Box<crate::attenuation::Prepared>>>,
     id: u64,
 }
 
@@ -300,8 +301,12 @@ impl<'m, M: Medium> Endpoints<'m, M> {
                 run.kind.push(&g, k, e);
             }
         }
+        // Per-endpoint data of Gaussian beams only where there are some (a set of far-field
+        // sensors can be a megapixel image).
+        let gaussian = ends.iter().any(|e| matches!(e, Kind::Gaussian(_)));
+        let gaussians = if gaussian { ends.as_slice() } else { &[] };
         let mut classes = std::collections::HashMap::new();
-        let axis_class = ends
+        let axis_class = gaussians
             .iter()
             .map(|e| match e {
                 Kind::Gaussian(b) => {
@@ -314,10 +319,12 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             })
             .collect();
         let three = medium.dimension() == Dimension::Three;
-        let prepared = ends
+        let prepared = gaussians
             .iter()
             .map(|e| match e {
-                Kind::Gaussian(b) => Some(crate::attenuation::Prepared::new(b, three, geometry)),
+                Kind::Gaussian(b) => Some(Box::new(crate::attenuation::Prepared::new(
+                    b, three, geometry,
+                ))),
                 _ => None,
             })
             .collect();
@@ -327,7 +334,7 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             prepared,
             axis_class,
             axis_classes: classes.len(),
-            gaussian: ends.iter().any(|e| matches!(e, Kind::Gaussian(_))),
+            gaussian,
             ends,
             geometry,
             three,
@@ -555,47 +562,83 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         out_re: &mut [f64],
         out_im: &mut [f64],
     ) {
-        let n = legs.len();
-        let (re, im) = (&mut out_re[..n], &mut out_im[..n]);
         if self.gaussian {
-            // Leg endpoints directly; every beam and lobe queued on one batch of integrals.
-            for i in 0..n {
-                let x = match &self.ends[i] {
-                    Kind::Gaussian(_) => Complex64::new(0.0, 0.0),
-                    _ => {
-                        let (w_in, w_out) = dirs(legs.dir(i));
-                        legs.amp(i) * phase.amplitude_between(w_in, w_out)
-                    }
-                };
-                re[i] = x.re;
-                im[i] = x.im;
-            }
-            let (w_in, w_out) = dirs(DVec3::ZERO);
-            // Source form: the direction leaving x (a sensor's is minus the arrival).
-            let w = match self.side {
-                Side::Source => w_out,
-                Side::Sensor => -w_in,
-            };
-            let (lobes, one) = (lobes(phase), Complex64::new(1.0, 0.0));
-            let sink = &mut |i: usize, v: Complex64| {
-                re[i] += v.re;
-                im[i] += v.im;
-            };
-            let mut batch = near::Batch::new(self.three);
-            for i in 0..n {
-                if let Kind::Gaussian(_) = &self.ends[i] {
-                    near::push_upsilon(&mut batch, i, one, &legs.aperture[i], lobes, w, sink);
-                }
-            }
-            batch.flush(sink);
-            return;
+            self.scatter_many(&[legs], phase, dirs, &mut [(out_re, out_im)]);
+        } else {
+            self.leg_values(legs, phase, &dirs, out_re, out_im);
         }
+    }
+
+    /// The scattering values of the leg endpoints of `legs` into `re`, `im` (zero for Gaussian
+    /// beams, whose values [`Endpoints::scatter_many`] adds).
+    #[inline]
+    fn leg_values<P: PhaseFunction>(
+        &self,
+        legs: &Legs,
+        phase: &P,
+        dirs: &impl Fn(DVec3) -> (DVec3, DVec3),
+        re: &mut [f64],
+        im: &mut [f64],
+    ) {
+        let n = legs.len();
+        let (re, im) = (&mut re[..n], &mut im[..n]);
         for i in 0..n {
-            let (w_in, w_out) = dirs(legs.dir(i));
-            let x = legs.amp(i) * phase.amplitude_between(w_in, w_out);
+            let x = if self.gaussian && matches!(self.ends[i], Kind::Gaussian(_)) {
+                Complex64::new(0.0, 0.0)
+            } else {
+                let (w_in, w_out) = dirs(legs.dir(i));
+                legs.amp(i) * phase.amplitude_between(w_in, w_out)
+            };
             re[i] = x.re;
             im[i] = x.im;
         }
+    }
+
+    /// [`Endpoints::scatter`] at several points at once, all reached along the same path
+    /// directions `dirs` (the displaced copies of a vertex, `speckle-motion`): `legs[c]`
+    /// [`connect`](Self::connect)ed at point `c`, its values into `outs[c]` (real and imaginary
+    /// parts). The Gaussian beams' integrals of every point go through one batch; the values
+    /// are bitwise those of [`Endpoints::scatter`] point by point.
+    ///
+    /// # Panics
+    /// As [`Endpoints::scatter`]; if `legs` and `outs` differ in length.
+    pub fn scatter_many<P: PhaseFunction>(
+        &self,
+        legs: &[&Legs],
+        phase: &P,
+        dirs: impl Fn(DVec3) -> (DVec3, DVec3),
+        outs: &mut [(&mut [f64], &mut [f64])],
+    ) {
+        assert_eq!(legs.len(), outs.len(), "one output per point");
+        // Leg endpoints directly; every beam and lobe of every point queued on one batch.
+        for (l, (re, im)) in legs.iter().zip(outs.iter_mut()) {
+            self.leg_values(l, phase, &dirs, re, im);
+        }
+        if !self.gaussian {
+            return;
+        }
+        let n = self.len();
+        let (w_in, w_out) = dirs(DVec3::ZERO);
+        // Source form: the direction leaving x (a sensor's is minus the arrival).
+        let w = match self.side {
+            Side::Source => w_out,
+            Side::Sensor => -w_in,
+        };
+        let (lobes, one) = (lobes(phase), Complex64::new(1.0, 0.0));
+        let sink = &mut |owner: usize, v: Complex64| {
+            let (re, im) = &mut outs[owner / n];
+            re[owner % n] += v.re;
+            im[owner % n] += v.im;
+        };
+        let mut batch = near::Batch::new(self.three);
+        for (c, l) in legs.iter().enumerate() {
+            for i in 0..n {
+                if let Kind::Gaussian(_) = &self.ends[i] {
+                    near::push_upsilon(&mut batch, c * n + i, one, &l.aperture[i], lobes, w, sink);
+                }
+            }
+        }
+        batch.flush(sink);
     }
 }
 

@@ -374,3 +374,64 @@ fn all_pairs_single_scattering_is_the_pairs_one_by_one() {
         }
     }
 }
+
+/// `scatter_many` at several points gives bitwise `scatter` point by point, for a set mixing
+/// Gaussian beams with leg endpoints, sources and sensors, 3D and flatland.
+#[test]
+fn scattering_at_many_points_is_scattering_at_each() {
+    use speckle_phase::Phase;
+    use speckle_vmf::VmfMixture;
+    let phase = Phase::Vmf(std::sync::Arc::new(
+        VmfMixture::new(vec![(0.0, 0.3), (8.0, 1.0), (-1.5, 0.2)]).unwrap(),
+    ));
+    for flat in [false, true] {
+        let b = if flat {
+            Aabb::flat(glam::DVec2::splat(-6.0), glam::DVec2::splat(6.0)).unwrap()
+        } else {
+            Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 6.0)).unwrap()
+        };
+        let m = HomogeneousBox::from_mean_free_path(b, 5.0, 1.0).unwrap();
+        let up = if flat { DVec3::Y } else { DVec3::Z };
+        let beam = |f: DVec3| crate::GaussianBeam::new("b", f, up, 9.0).unwrap();
+        let sources = vec![
+            Source::GaussianBeam(beam(DVec3::new(1.0, -3.0, 0.0))),
+            Source::plane_wave(up).unwrap(),
+            Source::GaussianBeam(beam(DVec3::new(-1.0, -2.0, 0.0))),
+        ];
+        let sensors = vec![
+            Sensor::far_field(up).unwrap(),
+            Sensor::GaussianBeam(beam(DVec3::new(0.0, 3.0, 0.0))),
+        ];
+        let mut next = uniform(23);
+        for set in [
+            Endpoints::sources(&m, 6.0, &sources),
+            Endpoints::sensors(&m, 6.0, &sensors),
+        ] {
+            let n = set.len();
+            let w = unit_vector(&mut next, flat);
+            let dirs = |d: DVec3| (d, w);
+            // Seven points (a partly filled last chunk of integrals).
+            let legs: Vec<Legs> = (0..7)
+                .map(|_| {
+                    let mut l = set.legs();
+                    set.connect(m.bounds().lerp([next(), next(), next()]), &mut l);
+                    l
+                })
+                .collect();
+            let mut many = vec![(vec![0.0; n], vec![0.0; n]); legs.len()];
+            let refs: Vec<&Legs> = legs.iter().collect();
+            let mut outs: Vec<(&mut [f64], &mut [f64])> = many
+                .iter_mut()
+                .map(|(re, im)| (&mut re[..], &mut im[..]))
+                .collect();
+            set.scatter_many(&refs, &phase, dirs, &mut outs);
+            for (l, (re, im)) in legs.iter().zip(&many) {
+                let (mut r, mut i) = (vec![0.0; n], vec![0.0; n]);
+                set.scatter(l, &phase, dirs, &mut r, &mut i);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!((bits(re), bits(im)), (bits(&r), bits(&i)));
+                assert!(r.iter().all(|x| *x != 0.0));
+            }
+        }
+    }
+}

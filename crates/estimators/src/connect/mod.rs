@@ -248,6 +248,74 @@ impl Ends {
         }
     }
 
+    /// [`Ends::second`] for every copy of `copies` (the displaced copies of a path, each
+    /// [`start`](Ends::start)ed at its own first vertex), the Gaussian beams' integrals of all
+    /// copies in one batch; bitwise the copies' own [`Ends::second`].
+    pub fn second_copies<M: Medium, P: PhaseFunction>(
+        copies: &mut [Ends],
+        src: &Endpoints<M>,
+        sen: &Endpoints<M>,
+        phase: &P,
+        w12: DVec3,
+    ) {
+        if !(src.has_gaussian() || sen.has_gaussian()) || copies.iter().any(|e| e.exact.is_some()) {
+            for e in copies {
+                e.second(src, sen, phase, w12);
+            }
+            return;
+        }
+        let (legs, mut outs): (Vec<&Legs>, Vec<_>) = copies
+            .iter_mut()
+            .map(|e| (&e.in1, (&mut e.fwd_src.re[..], &mut e.fwd_src.im[..])))
+            .unzip();
+        src.scatter_many(&legs, phase, |d| (d, w12), &mut outs);
+        let (legs, mut outs): (Vec<&Legs>, Vec<_>) = copies
+            .iter_mut()
+            .map(|e| (&e.out1, (&mut e.rev_sens.re[..], &mut e.rev_sens.im[..])))
+            .unzip();
+        sen.scatter_many(&legs, phase, |d| (-w12, d), &mut outs);
+    }
+
+    /// [`Ends::at`] for every copy `c` of `copies` at its own point `xs[c]`, all reached along
+    /// `w_in` (the displaced copies of a path's vertex), the Gaussian beams' integrals of all
+    /// copies in one batch; bitwise the copies' own [`Ends::at`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn at_copies<M: Medium, P: PhaseFunction>(
+        copies: &mut [Ends],
+        src: &Endpoints<M>,
+        sen: &Endpoints<M>,
+        phase: &P,
+        xs: &[DVec3],
+        w_in: DVec3,
+        coherence: Coherence,
+    ) {
+        if !(src.has_gaussian() || sen.has_gaussian()) || copies.iter().any(|e| e.exact.is_some()) {
+            for (e, &x) in copies.iter_mut().zip(xs) {
+                e.at(src, sen, phase, x, w_in, coherence);
+            }
+            return;
+        }
+        let reversed = coherence == Coherence::ForwardAndReversed;
+        for (e, &x) in copies.iter_mut().zip(xs) {
+            sen.connect(x, &mut e.out_b);
+            if reversed {
+                src.connect(x, &mut e.in_b);
+            }
+        }
+        let (legs, mut outs): (Vec<&Legs>, Vec<_>) = copies
+            .iter_mut()
+            .map(|e| (&e.out_b, (&mut e.fwd_sens.re[..], &mut e.fwd_sens.im[..])))
+            .unzip();
+        sen.scatter_many(&legs, phase, |d| (w_in, d), &mut outs);
+        if reversed {
+            let (legs, mut outs): (Vec<&Legs>, Vec<_>) = copies
+                .iter_mut()
+                .map(|e| (&e.in_b, (&mut e.rev_src.re[..], &mut e.rev_src.im[..])))
+                .unzip();
+            src.scatter_many(&legs, phase, |d| (d, -w_in), &mut outs);
+        }
+    }
+
     /// The legs and scattering values at the vertex `x` reached along `w_in` (amplitude
     /// `phase` of the particle there); the source side only with reversed paths.
     #[allow(clippy::too_many_arguments)]

@@ -294,6 +294,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             conn,
             state: MotionState::default(),
             ends,
+            xs: Vec::with_capacity(sets),
             prod: vec![Complex64::ZERO; e_len * plan.combos],
             expo: vec![0.0; e_len * plan.combos],
             buf: vec![Complex64::ZERO; e_len],

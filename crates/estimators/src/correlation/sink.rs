@@ -56,6 +56,8 @@ pub(super) struct Scratch<'s, M, P> {
     /// With drift, the connections of both copies of every lag (`2 l + side`); without, the
     /// connector's.
     pub(super) ends: Vec<Ends>,
+    /// The points of the copies in `ends` at the current vertex.
+    pub(super) xs: Vec<DVec3>,
     /// Per entry and term combination: amplitude product and Brownian exponent (per `k^2 |t|`).
     pub(super) prod: Vec<Complex64>,
     pub(super) expo: Vec<f64>,
@@ -520,10 +522,9 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 self.s.conn.second(v.w12);
             }
             if self.plan.displaced {
-                let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
-                for e in &mut self.s.ends {
-                    e.second(src, sen, phase1, v.w12);
-                }
+                let s = &mut *self.s;
+                let (src, sen) = (s.conn.sources(), s.conn.sensors());
+                Ends::second_copies(&mut s.ends, src, sen, phase1, v.w12);
             }
         }
         self.factor.advance(&mut self.s.state, v);
@@ -539,15 +540,17 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         }
         if self.plan.displaced {
             let m = self.s.state.here;
+            let mut xs = std::mem::take(&mut self.s.xs);
+            xs.clear();
             for l in 0..self.plan.lags.len() {
                 self.s.inside[l] = self.s.inside[l] && self.stays(l, v.x, &m);
                 let end = self.end(l, &m, self.s.zb);
-                for side in 0..2 {
-                    let x = end.copy(v.x, side);
-                    let (src, sen) = (self.s.conn.sources(), self.s.conn.sensors());
-                    self.s.ends[2 * l + side].at(src, sen, phase, x, w_in, self.coherence);
-                }
+                xs.extend([end.copy(v.x, 0), end.copy(v.x, 1)]);
             }
+            let s = &mut *self.s;
+            let (src, sen) = (s.conn.sources(), s.conn.sensors());
+            Ends::at_copies(&mut s.ends, src, sen, phase, &xs, w_in, self.coherence);
+            self.s.xs = xs;
         }
         let weight = v.weight_for(self.coherence);
         if let Some(p) = &self.plan.powers {
