@@ -23,8 +23,9 @@
 //! The magnitude `e^(Re l + Re b)` and the phase `Im l + Im b` are exponentiated once, as the
 //! log form does, so nothing overflows that the value itself would not. Lanes whose phases are
 //! beyond [`crate::fastmath::SIN_COS_MAX`], or whose `|s|` is not finite, are recomputed by the
-//! log form. Agreement with [`ComplexVmf::ln_sphere_integral`]: `gaussian::tests` (a few `1e-15`
-//! of the integral's scale). Flatland (`2 pi I_0(b)`) takes the log form lane by lane.
+//! log form. Agreement with [`ComplexVmf::ln_sphere_integral`]: this module's tests (within two
+//! roundings of the phase, in units of the integral's scale `|e^(l + b)| / |b|`). Flatland
+//! (`2 pi I_0(b)`) takes the log form lane by lane.
 
 use crate::fastmath::{exp, in_sin_cos_range, sin_cos_reduced};
 use num_complex::Complex64;
