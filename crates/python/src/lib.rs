@@ -15,12 +15,12 @@ use num_complex::Complex64;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use speckle::estimators::{EstimatorError, render_single_scattering};
-use speckle::runs::{self, Kind, Outcome, RunError, ShardFile, temporal};
+use speckle::runs::{self, Kind, Outcome, RunError, temporal};
 use speckle::scene::cost::{self, Command};
 use speckle::scene::{LoadError, Overrides, Problem, examples, load_file, load_str};
-use speckle::stats::{Progress, Shard, ShardError as LibShardError};
+use speckle::stats::{Progress, ShardError as LibShardError};
 use speckle::wave::WaveError;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -28,6 +28,7 @@ use std::time::Duration;
 
 mod fit;
 mod plan;
+mod shards;
 
 pyo3::create_exception!(
     _speckle,
@@ -804,179 +805,6 @@ fn mean<'py>(py: Python<'py>, problem: &PyProblem) -> PyResult<Bound<'py, PyDict
     Ok(d)
 }
 
-/// One shard of a sharded render: its header and its numbers (`speckle::runs::ShardFile`).
-#[pyclass(frozen, module = "speckle._speckle", name = "Shard")]
-struct PyShard {
-    file: ShardFile,
-}
-
-#[pymethods]
-impl PyShard {
-    /// Reads a shard from the bytes of a shard file.
-    #[staticmethod]
-    fn from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<Self> {
-        let file =
-            ShardFile::from_bytes(data, Path::new("<bytes>")).map_err(|e| run_error(py, e))?;
-        Ok(Self { file })
-    }
-
-    /// Reads a shard file.
-    #[staticmethod]
-    fn read(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let file = py
-            .detach(|| ShardFile::read(&path))
-            .map_err(|e| run_error(py, e))?;
-        Ok(Self { file })
-    }
-
-    /// The bytes of its shard file.
-    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let b = py.detach(|| self.file.to_bytes());
-        PyBytes::new(py, &b)
-    }
-
-    /// The render (`covariance`, `intensity`, `fields`, `wave`).
-    #[getter]
-    fn kind(&self) -> &'static str {
-        self.file.header.kind.command()
-    }
-
-    /// Its index `i` of `i/n`.
-    #[getter]
-    fn index(&self) -> usize {
-        self.file.header.shard.index
-    }
-
-    /// The number of shards `n` of `i/n`.
-    #[getter]
-    fn count(&self) -> usize {
-        self.file.header.shard.count
-    }
-
-    /// Its units (batches, realizations or configurations), `(start, end)`.
-    #[getter]
-    fn units(&self) -> (usize, usize) {
-        (self.file.header.units.start, self.file.header.units.end)
-    }
-
-    /// The run's number of units.
-    #[getter]
-    fn total_units(&self) -> usize {
-        self.file.header.total
-    }
-
-    /// The run hash.
-    #[getter]
-    fn run_hash(&self) -> &str {
-        &self.file.header.run_hash
-    }
-
-    /// The seed.
-    #[getter]
-    fn seed(&self) -> u64 {
-        self.file.header.seed
-    }
-
-    /// The scene's name.
-    #[getter]
-    fn name(&self) -> &str {
-        &self.file.header.name
-    }
-
-    /// The wall time of its render, in seconds.
-    #[getter]
-    fn wall_time_s(&self) -> f64 {
-        self.file.header.wall_time_s
-    }
-
-    /// The name the binary writes it under, `<name>.<tag>.<i>-of-<n>.shard`.
-    #[getter]
-    fn file_name(&self) -> String {
-        self.file.file_name()
-    }
-
-    /// Pickling: by its file's bytes.
-    fn __reduce__<'py>(
-        slf: &Bound<'py, Self>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
-        let py = slf.py();
-        let ctor = py.get_type::<PyShard>().getattr("from_bytes")?;
-        Ok((ctor, (slf.get().to_bytes(py),)))
-    }
-
-    fn __repr__(&self) -> String {
-        let h = &self.file.header;
-        format!(
-            "Shard({} {} of {:?}: {} {:?} of {})",
-            h.kind.command(),
-            h.shard,
-            h.name,
-            h.kind.unit(),
-            h.units,
-            h.total
-        )
-    }
-}
-
-/// Renders shard `index` of `count` of `kind`.
-#[pyfunction]
-#[pyo3(signature = (problem, kind, index, count, threads=None, force=false))]
-fn render_shard(
-    py: Python<'_>,
-    problem: &PyProblem,
-    kind: &str,
-    index: usize,
-    count: usize,
-    threads: Option<usize>,
-    force: bool,
-) -> PyResult<PyShard> {
-    let p = &problem.p;
-    let kind = kind_of(py, kind)?;
-    let shard = Shard::new(index, count).map_err(|e| shard_error(py, e))?;
-    let t = thread_count(py, threads)?;
-    runs::guard(p, kind, t, Some(shard), force).map_err(|e| run_error(py, e))?;
-    let file = interruptible(py, threads, |pr| runs::render_shard(p, kind, shard, pr))?
-        .map_err(|e| run_error(py, e))?;
-    Ok(PyShard { file })
-}
-
-/// Merges shards (`Shard` objects or shard file paths, in any order) into the single run's
-/// arrays; returns the problem and the arrays.
-#[pyfunction]
-fn merge<'py>(
-    py: Python<'py>,
-    shards: &Bound<'py, PyAny>,
-) -> PyResult<(PyProblem, Bound<'py, PyDict>)> {
-    let mut files = Vec::new();
-    let mut paths = Vec::new();
-    for s in shards.try_iter()? {
-        let s = s?;
-        if let Ok(shard) = s.cast::<PyShard>() {
-            files.push(shard.get().file.clone());
-        } else {
-            let path: PathBuf = s.extract().map_err(|_| {
-                ShardError::new_err(format!("{s}: neither a Shard nor a shard file path"))
-            })?;
-            paths.push(path);
-        }
-    }
-    let merged = py
-        .detach(|| {
-            if files.is_empty() {
-                runs::merge_files(&paths, &python_defaults())
-            } else {
-                for path in &paths {
-                    files.push(ShardFile::read(path)?);
-                }
-                runs::merge(files, &python_defaults())
-            }
-        })
-        .map_err(|e| run_error(py, e))?;
-    let d = outcome_dict(py, &merged.problem, &merged.outcome)?;
-    d.set_item("shards", merged.shards)?;
-    Ok((PyProblem { p: merged.problem }, d))
-}
-
 /// The native module.
 #[pymodule]
 fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -986,9 +814,9 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("EXAMPLES", examples::names())?;
     m.add_class::<PyProblem>()?;
-    m.add_class::<PyShard>()?;
+    m.add_class::<shards::PyShard>()?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
-    m.add_function(wrap_pyfunction!(render_shard, m)?)?;
+    m.add_function(wrap_pyfunction!(shards::render_shard, m)?)?;
     m.add_function(wrap_pyfunction!(single, m)?)?;
     m.add_function(wrap_pyfunction!(mean, m)?)?;
     m.add_function(wrap_pyfunction!(g1, m)?)?;
@@ -997,6 +825,6 @@ fn _speckle(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(map, m)?)?;
     m.add_function(wrap_pyfunction!(tracking, m)?)?;
     m.add_function(wrap_pyfunction!(field_sequence, m)?)?;
-    m.add_function(wrap_pyfunction!(merge, m)?)?;
+    m.add_function(wrap_pyfunction!(shards::merge, m)?)?;
     Ok(())
 }
