@@ -367,6 +367,83 @@ fn rounded_and_multi_tau_lags_equal_the_direct_factors() {
     }
 }
 
+/// Drift with plane waves and far-field sensors in a box takes each term as one exponential in
+/// the lag (the copies' connections along the drift line, `correlation/linear.rs`); legs that
+/// change exit face within the lags' reach (near the box's edges) are taken lag by lag. Against
+/// every lag connected copy by copy (the same grids with an irregular lag added, which takes no
+/// powers): equal to `1e-12` of the zero lag, every entry and both coherence modes, regular and
+/// multi-tau grids, drift with diffusion; also a voxel grid of one extinction (exponential legs
+/// too) whose two halves drift differently (an interior drift phase).
+#[test]
+fn exponential_drift_equals_the_per_lag_connections() {
+    use speckle::medium::{Material, Medium, VoxelGrid};
+    let regular: Vec<f64> = (0..8).map(|l| l as f64 * 0.5).collect();
+    let mut multi_tau = vec![0.0];
+    let (mut m, mut step) = (0.0, 1.0);
+    for _ in 0..4 {
+        for _ in 0..4 {
+            m += step;
+            multi_tau.push(m * 0.1);
+        }
+        step *= 2.0;
+    }
+    fn compare<M: Medium>(scene: &Scene<M, Phase>, model: &MotionModel, lags: &[f64]) {
+        for coherence in [Coherence::ForwardAndReversed, Coherence::ForwardOnly] {
+            for entries in [Entries::Full, Entries::Diagonal] {
+                let o = opts(1501, 31, coherence);
+                let mut irregular = lags.to_vec();
+                irregular.push(std::f64::consts::PI / 7.0);
+                let a = render_correlation(scene, model, lags, &entries, &o, &NoProgress).unwrap();
+                let b = render_correlation(scene, model, &irregular, &entries, &o, &NoProgress)
+                    .unwrap();
+                let scale = a.total(0, 0).0.norm();
+                for l in 0..lags.len() {
+                    for e in 0..a.entries.len() {
+                        let at = |c: &CorrelationEstimate| {
+                            let p = &c.per_lag[l];
+                            [&p.single, &p.multiple, &p.total]
+                                .map(|m| (m.value.as_slice()[e], m.std_error.as_slice()[e]))
+                        };
+                        for (x, y) in at(&a).iter().zip(at(&b)) {
+                            assert!(
+                                (x.0 - y.0).norm() <= 1e-12 * scale
+                                    && (x.1 - y.1).norm() <= 1e-12 * scale,
+                                "lag {l} entry {e}: {x:?} vs {y:?}"
+                            );
+                        }
+                    }
+                }
+                // The drift turns the phases: the last lag's correlation is well below C(0).
+                let last = a.total(lags.len() - 1, 0).0.norm();
+                assert!(last < 0.9 * scale, "{last} vs {scale}");
+            }
+        }
+    }
+    let model = MotionModel::uniform(Motion::new(0.02, DVec3::new(0.5, -0.2, 0.1)).unwrap());
+    let far = far_scene();
+    for lags in [&regular, &multi_tau] {
+        compare(&far, &model, lags);
+    }
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 4.0)).unwrap();
+    let mats = vec![Material::single(0.45, 0.05), Material::single(0.5, 0.0)];
+    let grid = VoxelGrid::from_materials(b, [2, 1, 1], vec![0, 1], mats).unwrap();
+    let voxel = Scene::new(
+        grid,
+        far.phases()[0].clone(),
+        1.0,
+        far.sources().to_vec(),
+        far.sensors().to_vec(),
+        Pair::all(2, 3),
+    )
+    .unwrap();
+    let two = MotionModel::per_material(vec![
+        Motion::new(0.02, DVec3::new(0.5, -0.2, 0.1)).unwrap(),
+        Motion::new(0.01, DVec3::new(-0.3, 0.4, 0.0)).unwrap(),
+    ])
+    .unwrap();
+    compare(&voxel, &two, &regular);
+}
+
 /// The diagonal entries' own path (`Entries::Diagonal` without drift: the Brownian exponents
 /// formed per source, sensor and path, the powers of every entry formed together, one lane
 /// each) against the general one (the same entries as a list), far-field and point endpoints,

@@ -132,6 +132,69 @@ impl Run {
     }
 }
 
+impl Run {
+    /// The attenuation exponent `max_a (c_a q_a + r_a)` (`c = center - y`) of endpoint `i` at
+    /// `y`, and the face `a` that attains it.
+    #[inline]
+    fn exponent(&self, i: usize, g: &BoxMedium, y: DVec3) -> (usize, f64) {
+        let c = g.center - y;
+        let mut best = (0, f64::NEG_INFINITY);
+        for a in 0..3 {
+            let e = c[a] * self.q[a][i] + self.r[a][i];
+            if e > best.1 {
+                best = (a, e);
+            }
+        }
+        best
+    }
+
+    /// The rate `beta = d/ds ln leg_i(x + s u)` of endpoint `i` of the run along the line
+    /// `x + s u`, `|s| <= reach`: `i kappa . u` from the phase and `-u_a q_a` from the
+    /// attenuation exponent `max_a (c_a q_a + r_a)` (`c = center - x`) of the face `a` the leg
+    /// leaves through. The exponent is a maximum of linear functions of `s`, so when the same
+    /// face attains it at both ends of the segment it does all along (a convex function below its
+    /// chord is the chord), and `leg_i(x + s u) = leg_i(x) exp(beta s)` exactly there. `None`
+    /// when the face changes along the segment or an end lies outside the box.
+    pub(crate) fn rate(
+        &self,
+        i: usize,
+        g: &BoxMedium,
+        x: DVec3,
+        u: DVec3,
+        reach: f64,
+    ) -> Option<Complex64> {
+        let (lo, hi) = (
+            self.exponent(i, g, x - reach * u),
+            self.exponent(i, g, x + reach * u),
+        );
+        if lo.0 != hi.0 || lo.1 > 0.0 || hi.1 > 0.0 || !lo.1.is_finite() {
+            return None;
+        }
+        let a = lo.0;
+        Some(Complex64::new(-u[a] * self.q[a][i], self.phase_rate(i, u)))
+    }
+
+    /// `kappa_i . u`, the rate of the phase of endpoint `i` along `u`.
+    #[inline]
+    fn phase_rate(&self, i: usize, u: DVec3) -> f64 {
+        self.k[0][i] * u.x + self.k[1][i] * u.y + self.k[2][i] * u.z
+    }
+
+    /// `ln(leg_i(x + s u) / leg_i(x))` of endpoint `i` (both points in the box): the change of
+    /// the attenuation exponent and `i s kappa . u`.
+    pub(crate) fn log_ratio(
+        &self,
+        i: usize,
+        g: &BoxMedium,
+        x: DVec3,
+        u: DVec3,
+        s: f64,
+    ) -> Complex64 {
+        let (e0, e1) = (self.exponent(i, g, x).1, self.exponent(i, g, x + s * u).1);
+        Complex64::new(e1.min(0.0) - e0.min(0.0), s * self.phase_rate(i, u))
+    }
+}
+
 /// Coefficients `(q, r)` of one axis of the far-field attenuation exponent: for a unit exit
 /// direction with component `e`, the distance from `x` to the face it heads for is
 /// `t = (c + h sgn e) / e` (`c = center - x`, `h` the half size), so `-sigma_t t / 2 = c q + r`

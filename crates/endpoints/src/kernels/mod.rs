@@ -524,6 +524,67 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         }
     }
 
+    /// Whether every endpoint is directional (a plane wave or a far-field sensor) in a
+    /// homogeneous box: then [`Self::drift_rates`] and [`Self::drift_log_ratio`] apply.
+    pub fn directional_in_box(&self) -> bool {
+        self.geometry.is_some()
+            && self
+                .runs
+                .iter()
+                .all(|r| matches!(r.kind, RunKind::Plane(_)))
+    }
+
+    /// The rates `beta_i = d/ds ln leg_i(x + s u)` of every endpoint's leg along the line
+    /// `x + s u`, `|s| <= reach`, into `out` (at least `len()` long), for a set that is
+    /// [`Self::directional_in_box`] and a segment inside the box (else false). `out[i]` is
+    /// `None` where the leg leaves the box through different faces along the segment (its
+    /// attenuation has a kink there; [`Self::drift_log_ratio`] gives it point by point), else
+    /// `Some(beta_i)`, and then `leg_i(x + s u) = leg_i(x) exp(beta_i s)` exactly on the
+    /// segment (`plane.rs`, `Run::rate`). The spatio-temporal estimator uses it for drift: the
+    /// copies of an end vertex at every lag lie on one such line, so their connections are one
+    /// exponential in the lag instead of one connection per copy.
+    pub fn drift_rates(
+        &self,
+        x: DVec3,
+        u: DVec3,
+        reach: f64,
+        out: &mut [Option<Complex64>],
+    ) -> bool {
+        let Some(g) = self.geometry else {
+            return false;
+        };
+        let inside = g.holds(x - reach * u) && g.holds(x + reach * u);
+        if !(reach.is_finite() && u.is_finite() && inside && self.directional_in_box()) {
+            return false;
+        }
+        for run in &self.runs {
+            let RunKind::Plane(p) = &run.kind else {
+                return false;
+            };
+            for j in 0..run.len {
+                out[run.start + j] = p.rate(j, &g, x, u, reach);
+            }
+        }
+        true
+    }
+
+    /// `ln(leg_i(x + s u) / leg_i(x))` for endpoint `i` of a set that is
+    /// [`Self::directional_in_box`], with `x` and `x + s u` in the box (`None` otherwise).
+    pub fn drift_log_ratio(&self, i: usize, x: DVec3, u: DVec3, s: f64) -> Option<Complex64> {
+        let g = self.geometry?;
+        if !(g.holds(x) && g.holds(x + s * u)) {
+            return None;
+        }
+        let run = self
+            .runs
+            .iter()
+            .find(|r| (r.start..r.start + r.len).contains(&i))?;
+        match &run.kind {
+            RunKind::Plane(p) => Some(p.log_ratio(i - run.start, &g, x, u, s)),
+            _ => None,
+        }
+    }
+
     /// Leg `i` at `x` by the scalar (medium-calling) route.
     fn scalar_leg(&self, i: usize, x: DVec3, legs: &mut Legs) {
         if let Kind::Gaussian(b) = &self.ends[i] {

@@ -435,3 +435,97 @@ fn scattering_at_many_points_is_scattering_at_each() {
         }
     }
 }
+
+/// `drift_rates`: where it gives a leg a rate, the leg along the segment is its leg at the
+/// centre times `exp(beta s)` (the scalar legs of the medium, to rounding); where it gives
+/// none, the leg changes exit face along the segment and the exponential would be wrong (the
+/// test sees both cases), and `drift_log_ratio` gives it point by point. Point endpoints and
+/// voxel media of varying extinction are refused.
+#[test]
+fn drift_rates_give_the_legs_along_a_line() {
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(8.0, 6.0, 4.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(b, 1.5, 1.0).unwrap();
+    let k = 7.0;
+    let mut next = uniform(23);
+    let sources: Vec<Source> = (0..6)
+        .map(|_| Source::plane_wave(unit_vector(&mut next, false)).unwrap())
+        .collect();
+    let sensors: Vec<Sensor> = (0..6)
+        .map(|_| Sensor::far_field(unit_vector(&mut next, false)).unwrap())
+        .collect();
+    let (src, sen) = (
+        Endpoints::sources(&m, k, &sources),
+        Endpoints::sensors(&m, k, &sensors),
+    );
+    assert!(src.directional_in_box() && sen.directional_in_box());
+    let (mut exponential, mut bent_wrong, mut segments) = (0, 0, 0);
+    let mut rates = vec![None; 6];
+    for _ in 0..400 {
+        let x = b.lerp([next(), next(), next()]);
+        let u = unit_vector(&mut next, false) * (0.5 + next());
+        let reach = 1.5 * next();
+        let source_leg = |x: DVec3, i: usize| sources[i].leg(&m, k, x).amp;
+        let sensor_leg = |x: DVec3, i: usize| sensors[i].leg(&m, k, x).amp;
+        type LegOf<'a> = &'a dyn Fn(DVec3, usize) -> Complex64;
+        let sides: [(&Endpoints<_>, LegOf); 2] = [(&src, &source_leg), (&sen, &sensor_leg)];
+        for (set, legs_of) in sides {
+            if !set.drift_rates(x, u, reach, &mut rates) {
+                // Only segments that leave the box are refused.
+                assert!(!(b.contains(x - reach * u) && b.contains(x + reach * u)));
+                continue;
+            }
+            segments += 1;
+            for (i, rate) in rates.iter().enumerate() {
+                // The centre's rate of the modulus (one-sided difference) where there is none.
+                let h = 1e-6;
+                let r = (legs_of(x + h * u, i).norm() / legs_of(x, i).norm()).ln() / h;
+                let mut miss = 0.0f64;
+                for n in 0..=10 {
+                    let s = reach * (n as f64 / 5.0 - 1.0);
+                    let want = legs_of(x + s * u, i);
+                    let tol = 1e-12 * (1.0 + (k * s * u.length()).abs()) * want.norm();
+                    let ratio = set.drift_log_ratio(i, x, u, s).unwrap().exp();
+                    let point = legs_of(x, i) * ratio;
+                    assert!(
+                        (point - want).norm() <= tol,
+                        "leg {i} at s = {s}: {point} vs {want}"
+                    );
+                    match rate {
+                        Some(beta) => {
+                            let got = legs_of(x, i) * (beta * s).exp();
+                            assert!(
+                                (got - want).norm() <= tol,
+                                "leg {i} at s = {s}: {got} vs {want}"
+                            );
+                        }
+                        None => {
+                            let got = legs_of(x, i).norm() * (r * s).exp();
+                            miss = miss.max((got - want.norm()).abs() / want.norm());
+                        }
+                    }
+                }
+                match rate {
+                    Some(_) => exponential += 1,
+                    None if miss > 1e-6 => bent_wrong += 1,
+                    None => {}
+                }
+            }
+        }
+    }
+    assert!(
+        segments > 150 && exponential > 1000 && bent_wrong > 50,
+        "{segments} {exponential} {bent_wrong}"
+    );
+    // Other kinds and media are refused.
+    let point = [Sensor::point(DVec3::new(0.0, 0.0, 3.0))];
+    let p = Endpoints::sensors(&m, k, &point);
+    assert!(!p.directional_in_box());
+    assert!(!p.drift_rates(DVec3::ZERO, DVec3::X, 0.1, &mut rates));
+    use speckle_medium::Material;
+    let mats = vec![Material::single(0.5, 0.5), Material::single(2.0, 0.0)];
+    let v = VoxelGrid::from_materials(b, [2, 1, 1], vec![0, 1], mats).unwrap();
+    let f = Endpoints::sources(&v, k, &sources);
+    assert!(!f.directional_in_box());
+    assert!(!f.drift_rates(DVec3::ZERO, DVec3::X, 0.1, &mut rates));
+    assert!(f.drift_log_ratio(0, DVec3::ZERO, DVec3::X, 0.1).is_none());
+}

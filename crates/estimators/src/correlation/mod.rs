@@ -54,15 +54,20 @@
 //! `E` entries and `L` lags, with the end-vertex products formed once per vertex and lag-free
 //! when nothing drifts. Without drift the copies connect where the static connector does (its
 //! legs serve both), and lags that are whole multiples of one step take their factors as powers
-//! of one exponential per term ([`crate::lag_powers`]), summed per batch.
+//! of one exponential per term ([`crate::lag_powers`]), summed per batch. With drift, plane
+//! waves and far-field sensors in a homogeneous box connect along the copies' line as exact
+//! exponentials, so each term is one complex exponential in the lag and takes powers too
+//! (`linear.rs`, equal to the copy-by-copy connections to rounding).
 
 mod factor;
+mod legs;
+mod linear;
 mod sink;
 
 pub use factor::MotionFactor;
 
 use crate::connect::{Connector, Ends};
-use crate::lag_powers::{PowerSums, Powers, SlotSums};
+use crate::lag_powers::{DriftSums, PowerSums, Powers, SlotSums};
 use crate::{
     Coherence, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
@@ -248,8 +253,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             Entry { s1, v1, s2, v2 }
         })
         .collect();
-    drop(probe);
-    let plan = Plan {
+    let mut plan = Plan {
         lags: lags.to_vec(),
         zero: lags.iter().map(|t| *t == 0.0).collect(),
         any_zero: lags.contains(&0.0),
@@ -271,7 +275,20 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         } else {
             Powers::of(lags)
         },
+        linear: None,
+        times: Vec::new(),
     };
+    if model.has_drift()
+        && !beams
+        && lags.iter().all(|t| *t >= 0.0)
+        && linear::exponential(probe.sources(), probe.sensors())
+    {
+        plan.linear = Powers::of(lags).filter(|p| p.eta == 0.0);
+        if let Some(p) = &plan.linear {
+            plan.times = p.order.iter().map(|&(l, _)| lags[l]).collect();
+        }
+    }
+    drop(probe);
     let parts: Vec<(Layout, usize)> = plan
         .zero
         .iter()
@@ -284,7 +301,12 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             [part, part]
         })
         .collect();
-    let sets = if plan.displaced { 2 * lags.len() } else { 0 };
+    // (The exponential drift connects no copies, `linear.rs`.)
+    let sets = if plan.displaced && plan.linear.is_none() {
+        2 * lags.len()
+    } else {
+        0
+    };
     let init = || {
         let conn = Connector::new(scene);
         let ends = (0..sets)
@@ -320,6 +342,14 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             brown: PathRng::new(plan.key, 0),
             z1: DVec3::ZERO,
             zb: DVec3::ZERO,
+            drift: plan.linear.as_ref().map(|p| {
+                [
+                    DriftSums::new(p, e_len, 1),
+                    DriftSums::new(p, e_len, plan.combos),
+                ]
+            }),
+            legs: Default::default(),
+            count: 0,
         }
     };
     let path = |s: &mut Scratch<M, P>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {
@@ -348,6 +378,11 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         }
         if let Some(t) = &mut s.slots {
             t.flush(sums, |l| 2 * l + 1, &mut s.buf);
+        }
+        if let Some(d) = &mut s.drift {
+            for (half, t) in d.iter_mut().enumerate() {
+                t.flush(sums, |l| 2 * l + half, &mut s.buf);
+            }
         }
     };
     let estimates = batch_moments_grouped(options.paths, &groups, init, path, end, progress)

@@ -40,6 +40,11 @@ pub(super) struct Plan {
     /// Without drift, lags that are whole multiples of one step: their factors are powers of
     /// one exponential per term ([`crate::lag_powers`]).
     pub(super) powers: Option<Powers>,
+    /// With drift, endpoints whose connections are exponentials along lines and non-negative
+    /// lags that are whole multiples of one step: the exponential drift of [`super::linear`].
+    pub(super) linear: Option<Powers>,
+    /// Its non-zero lags in increasing order.
+    pub(super) times: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,6 +99,13 @@ pub(super) struct Scratch<'s, M, P> {
     pub(super) inside: Vec<bool>,
     /// `inside` saved across a branch ([`VertexSink::branch`]).
     pub(super) inside_saved: Vec<bool>,
+    /// The exponential drift ([`super::linear`]): the batch's sums of single and multiple
+    /// scattering, and the legs of the sources and sensors at `x1` and at `x_b`.
+    pub(super) drift: Option<[DriftSums; 2]>,
+    pub(super) legs: [super::legs::LegSet; 4],
+    /// The exponential drift's count of the leading lags (increasing) at which every vertex
+    /// of the path so far stays in the box (its `inside`).
+    pub(super) count: usize,
 }
 
 pub(super) struct CorrelationSink<'a, 's, 'p, M, P> {
@@ -141,7 +153,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     /// nothing drifts (then both copies of every lag connect where the connector does).
     #[inline]
     pub(super) fn connector_legs(&self) -> bool {
-        !self.plan.displaced || self.plan.any_zero
+        !self.plan.displaced || self.plan.any_zero || self.plan.linear.is_some()
     }
 
     /// Accumulates a zero lag as the static covariance does: the connector's pair values.
@@ -203,22 +215,16 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         }
     }
 
-    /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
-    /// drift or sampled displacements, whose two copies are one pair with the same ends. The
-    /// Brownian exponent of a term combination is a first vertex's part, which depends on the
-    /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
-    /// plus the last vertex's: so the parts are formed once per path, source or sensor
-    /// (`first_*`, `last_*`) rather than once per entry and combination. Every entry has the
-    /// same combinations (forward, crossed, reversed; all real: `a conj(a)`,
-    /// `a conj(b) + b conj(a)`), so they go to [`SlotSums`], one vector lane per entry. The
-    /// terms are those of the general path, their sums equal to rounding (`tests/motion.rs`
-    /// compares the two).
-    pub(super) fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
+    /// The Brownian exponents' parts of diagonal entries at the vertex reached along `w_in`
+    /// ([`Self::diagonal_powers`]): the first vertex's per source (`first_fwd`), sensor
+    /// (`first_rev`) and entry (`first_cross`), when `second` (they are fixed along the path),
+    /// and the last vertex's per sensor (`last_fwd`), source (`last_rev`) and the crossed
+    /// terms' two halves (`cross_sen`, `cross_src`).
+    pub(super) fn diagonal_parts(&mut self, w_in: DVec3, second: bool) {
         use speckle_motion::{first_transfer, last_transfer, sensor_gradient, source_gradient};
         let Scratch {
             conn,
             state,
-            slots,
             first_fwd,
             first_rev,
             first_cross,
@@ -228,10 +234,6 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             cross_src,
             ..
         } = &mut *self.s;
-        let Some(p) = &self.plan.powers else {
-            return;
-        };
-        let c = self.plan.k * self.plan.k * p.delta;
         let (d1, db, w1) = (state.first.diffusion, state.here.diffusion, state.w1);
         let reversed = self.coherence == Coherence::ForwardAndReversed;
         let ends = conn.ends();
@@ -264,6 +266,39 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             cross_sen.extend((0..n_sen).map(|v| -w_in - 0.5 * g_fb(v)));
             cross_src.extend((0..n_src).map(|i| 0.5 * g_rb(i)));
         }
+    }
+
+    /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
+    /// drift or sampled displacements, whose two copies are one pair with the same ends. The
+    /// Brownian exponent of a term combination is a first vertex's part, which depends on the
+    /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
+    /// plus the last vertex's: so the parts are formed once per path, source or sensor
+    /// (`first_*`, `last_*`) rather than once per entry and combination. Every entry has the
+    /// same combinations (forward, crossed, reversed; all real: `a conj(a)`,
+    /// `a conj(b) + b conj(a)`), so they go to [`SlotSums`], one vector lane per entry. The
+    /// terms are those of the general path, their sums equal to rounding (`tests/motion.rs`
+    /// compares the two).
+    pub(super) fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
+        let Some(p) = &self.plan.powers else {
+            return;
+        };
+        let c = self.plan.k * self.plan.k * p.delta;
+        self.diagonal_parts(w_in, second);
+        let db = self.s.state.here.diffusion;
+        let reversed = self.coherence == Coherence::ForwardAndReversed;
+        let Scratch {
+            conn,
+            slots,
+            first_fwd,
+            first_rev,
+            first_cross,
+            last_fwd,
+            last_rev,
+            cross_sen,
+            cross_src,
+            ..
+        } = &mut *self.s;
+        let ends = conn.ends();
         let slots = slots.as_mut().expect("slot sums of diagonal entries");
         let mut terms = slots.terms();
         let (first_fwd, first_rev, first_cross) =
@@ -326,23 +361,25 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         tables[0].add_held(out);
     }
 
-    /// The ends of both copies of lag `l`.
+    /// The ends of both copies of lag `l`: their own with drift or sampled displacements, the
+    /// connector's otherwise or when `l` is `None` (the connections at the vertices
+    /// themselves, which the exponential drift of [`super::linear`] starts from).
     #[inline]
     pub(super) fn ends_of<'x>(
         conn: &'x Connector<'_, M, P>,
         ends: &'x [Ends],
         drift: bool,
-        l: usize,
+        l: Option<usize>,
     ) -> (&'x Ends, &'x Ends) {
-        if drift {
-            (&ends[2 * l], &ends[2 * l + 1])
-        } else {
-            (conn.ends(), conn.ends())
+        match l {
+            Some(l) if drift => (&ends[2 * l], &ends[2 * l + 1]),
+            _ => (conn.ends(), conn.ends()),
         }
     }
 
-    /// Fills `prod`, `expo` with the single-scattering terms of the ends of lag `l`.
-    pub(super) fn single_terms(&mut self, l: usize) {
+    /// Fills `prod`, `expo` with the single-scattering terms of the ends of lag `l`
+    /// ([`Self::ends_of`]).
+    pub(super) fn single_terms(&mut self, l: Option<usize>) {
         let phase = &self.scene.phases()[self.type1];
         let d1 = self.s.state.first.diffusion;
         let n = self.plan.combos;
@@ -391,8 +428,8 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     }
 
     /// Fills `prod`, `expo` with the terms of the vertex `x_b` reached along `w_in` for the
-    /// ends of lag `l`.
-    pub(super) fn vertex_terms(&mut self, l: usize, w_in: DVec3) {
+    /// ends of lag `l` ([`Self::ends_of`]).
+    pub(super) fn vertex_terms(&mut self, l: Option<usize>, w_in: DVec3) {
         let (d1, db) = (self.s.state.first.diffusion, self.s.state.here.diffusion);
         let w1 = self.s.state.w1;
         let reversed = self.coherence == Coherence::ForwardAndReversed;
@@ -471,6 +508,13 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         if self.plan.sampled {
             self.s.z1 = self.normal();
         }
+        if self.plan.linear.is_some() {
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l, weight);
+            }
+            self.linear_first(x1, weight);
+            return;
+        }
         if self.plan.displaced {
             let m = self.s.state.first;
             for l in 0..self.plan.lags.len() {
@@ -491,7 +535,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 if self.plan.mode == Mode::Diagonal && !self.plan.sampled {
                     self.diagonal_single(weight);
                 } else {
-                    self.single_terms(l);
+                    self.single_terms(Some(l));
                     self.push_powers(0, weight, 0.0);
                 }
             }
@@ -507,7 +551,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 continue;
             }
             if self.plan.displaced || !done {
-                self.single_terms(l);
+                self.single_terms(Some(l));
                 done = true;
             }
             self.push_lag(2 * l, l, Complex64::new(weight, 0.0));
@@ -521,7 +565,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if self.connector_legs() {
                 self.s.conn.second(v.w12);
             }
-            if self.plan.displaced {
+            if self.plan.displaced && self.plan.linear.is_none() {
                 let s = &mut *self.s;
                 let (src, sen) = (s.conn.sources(), s.conn.sensors());
                 Ends::second_copies(&mut s.ends, src, sen, phase1, v.w12);
@@ -537,6 +581,14 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         let w_in = v.w_in;
         if self.plan.sampled {
             self.s.zb = self.normal();
+        }
+        if self.plan.linear.is_some() {
+            let weight = v.weight_for(self.coherence);
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l + 1, weight);
+            }
+            self.linear_vertex(v, weight);
+            return;
         }
         if self.plan.displaced {
             let m = self.s.state.here;
@@ -562,7 +614,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 if self.plan.mode == Mode::Diagonal && !self.plan.sampled {
                     self.diagonal_powers(w_in, weight, y, v.index == 2);
                 } else {
-                    self.vertex_terms(l, w_in);
+                    self.vertex_terms(Some(l), w_in);
                     self.push_powers(1, weight, y);
                 }
             }
@@ -579,7 +631,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
                 continue;
             }
             if self.plan.displaced || !done {
-                self.vertex_terms(l, w_in);
+                self.vertex_terms(Some(l), w_in);
                 done = true;
             }
             let mut w = self.s.state.interior(k, self.plan.lags[l]) * weight;
@@ -603,6 +655,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
     /// from the path's stream of them like a vertex's: the draws stay independent.)
     fn branch(&mut self, v: &Vertex, rng: &mut PathRng) {
         let saved = self.s.state;
+        let count = self.s.count;
         if self.plan.displaced {
             let s = &mut *self.s;
             s.inside_saved.clear();
@@ -610,6 +663,7 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         }
         self.vertex(v, rng);
         self.s.state = saved;
+        self.s.count = count;
         if self.plan.displaced {
             let s = &mut *self.s;
             s.inside.clear();

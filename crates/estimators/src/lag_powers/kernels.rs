@@ -55,7 +55,7 @@ pub(super) fn multipliers(ms: &mut [f64], lead: f64, r8: f64) -> usize {
 /// times any `n` here), then `e^f` by its Taylor polynomial of degree 13 (remainder below
 /// `5e-18`) and `2^n` from its exponent bits.
 #[inline(always)]
-pub(super) fn exp_neg(x: f64) -> f64 {
+pub(crate) fn exp_neg(x: f64) -> f64 {
     /// `1.5 2^52`: adding it rounds to a whole number, held in the low bits.
     const ROUND: f64 = 6_755_399_441_055_744.0;
     /// `ln 2` in two parts: the first with 32 significant bits (so `n LN2_HI` is exact), the

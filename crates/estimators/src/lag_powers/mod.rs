@@ -22,11 +22,13 @@
 //! time through `pulp`); they use no fused multiply-adds, so every instruction set gives bitwise
 //! the same sums.
 
-mod kernels;
+mod drift;
+pub(crate) mod kernels;
 mod powers;
 mod slots;
 mod sums;
 
+pub(crate) use drift::DriftSums;
 pub(crate) use powers::Powers;
 pub(crate) use slots::SlotSums;
 pub(crate) use sums::PowerSums;
