@@ -115,7 +115,12 @@ pub fn expected_scatterers(scene: &WaveScene) -> Result<f64, WaveError> {
 /// independent, so pairs of scatterers may come arbitrarily close (point scatterers allow it:
 /// the Foldy-Lax matrix of a close pair stays regular).
 pub fn sample_scatterers(scene: &WaveScene, rng: &mut PathRng) -> Result<Vec<DVec3>, WaveError> {
-    let expected = expected_scatterers(scene)?;
+    Ok(sample_expected(scene, expected_scatterers(scene)?, rng))
+}
+
+/// [`sample_scatterers`] with the expected count given (checked by the caller against its own
+/// limit): the same draws, so the multi-slice solver sees the Foldy-Lax configurations.
+pub(crate) fn sample_expected(scene: &WaveScene, expected: f64, rng: &mut PathRng) -> Vec<DVec3> {
     let mut count = 0usize;
     let mut t = -(1.0 - rng.next_f64()).ln();
     while t <= expected {
@@ -123,9 +128,9 @@ pub fn sample_scatterers(scene: &WaveScene, rng: &mut PathRng) -> Result<Vec<DVe
         t -= (1.0 - rng.next_f64()).ln();
     }
     let m = scene.medium();
-    Ok((0..count)
+    (0..count)
         .map(|_| m.sample_scatterer(rng.next_3()))
-        .collect())
+        .collect()
 }
 
 fn check_positions(scene: &WaveScene, scatterers: &[DVec3]) -> Result<(), WaveError> {

@@ -29,6 +29,7 @@ pub mod tilt_shift;
 pub mod tracking;
 pub mod wave;
 pub mod wave_motion;
+pub mod wave_multislice;
 
 use crate::error::{self, InputError};
 use crate::image::Gray;

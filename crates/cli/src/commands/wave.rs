@@ -1,7 +1,8 @@
 //! `speckle wave`: the exact Foldy-Lax solution of `R` random configurations of the scene's
 //! scatterers (`speckle::wave`), with their empirical mean and covariance in the pair order and
 //! layout of `speckle covariance`; with `[motion]`, the moving-scatterer solution
-//! (`wave_motion.rs`).
+//! (`wave_motion.rs`); with `--multislice`, multi-slice beam propagation through the same
+//! configurations (`wave_multislice.rs`).
 
 use super::fields::{FieldImages, layout};
 use super::*;
@@ -21,6 +22,25 @@ pub struct Args {
     /// Write no PNG.
     #[arg(long)]
     no_png: bool,
+    /// Multi-slice beam propagation (split-step angular spectrum, forward scattering only)
+    /// through the same configurations instead of the exact solve: a second, approximate
+    /// reference (Bar et al. 2020, Fig. 11 right) that runs on slabs far beyond the exact
+    /// solver. Plane waves at normal incidence on the box and far-field sensors in transmission
+    /// only; writes `<name>.multislice_*.npy` in the layout of `<name>.wave_*.npy`.
+    #[arg(long)]
+    multislice: bool,
+    /// With `--multislice`: the largest slice thickness (scene units; default a quarter
+    /// wavelength).
+    #[arg(long, value_name = "DZ", requires = "multislice")]
+    slice: Option<f64>,
+}
+
+/// Which solver produced an estimate, for its file names and sidecar.
+pub enum Method {
+    /// The exact Foldy-Lax solve.
+    FoldyLax,
+    /// Multi-slice propagation, with its settings for the sidecar.
+    Multislice(serde_json::Value),
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
@@ -32,6 +52,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
     // The solver's own checks first (isotropic phase, sigma_a = 0, the size of the medium).
     let scene = p.box_scene().map_err(in_scene(&p))?;
+    if a.multislice {
+        return super::wave_multislice::run(&p, &scene, run, a.slice);
+    }
     if p.motion.is_some() {
         return super::wave_motion::run(&p, &scene, run);
     }
@@ -78,37 +101,62 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 }
 
 /// Writes the wave solver's estimate `est` of `p` (rendered, or merged from shards).
-pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
+pub fn write(p: &Problem, staged: Staged, est: &WaveEstimate, wall: f64) -> anyhow::Result<()> {
+    write_as(p, staged, est, wall, Method::FoldyLax)
+}
+
+/// Writes an estimate of `p` by `method`: `<name>.wave_*` for the exact solve,
+/// `<name>.multislice_*` for multi-slice propagation.
+pub fn write_as(
+    p: &Problem,
+    mut staged: Staged,
+    est: &WaveEstimate,
+    wall: f64,
+    method: Method,
+) -> anyhow::Result<()> {
     let wave_error = |e| error::wave(e, &p.origin);
     let scene = p.box_scene().map_err(in_scene(p))?;
     let (j, rr) = (p.pairs(), p.render.configurations);
-    let cost = estimate_cost(&scene, rr, threads()).map_err(wave_error)?;
     let density = number_density(&scene).map_err(wave_error)?;
+    let kind = match method {
+        Method::FoldyLax => "wave",
+        Method::Multislice(_) => "multislice",
+    };
     let n = &p.name;
     let cov = &est.covariance;
     let (fields_shape, fields_layout) = layout(p, rr, "configuration");
     let mut files = json!({
         "layout": format!(
-            "wave_cov, wave_cov_stderr: complex128 (J, J), row j1 column j2 = pairs[j1], \
+            "{kind}_cov, {kind}_cov_stderr: complex128 (J, J), row j1 column j2 = pairs[j1], \
              pairs[j2], as <name>.cov.npy; stderr: re = standard error of Re C, im = of Im C \
-             (over configurations); wave_mean, wave_mean_stderr: complex128 (J,), the sample \
-             mean of each pair's field and its standard error (re, im); wave_fields: \
+             (over configurations); {kind}_mean, {kind}_mean_stderr: complex128 (J,), the \
+             sample mean of each pair's field and its standard error (re, im); {kind}_fields: \
              {fields_layout}"
         ),
         "fields_shape": fields_shape,
     });
-    let arrays = [
-        ("wave_cov", encode_c16(&[j, j], cov.value.as_slice())),
-        (
+    let names = match method {
+        Method::FoldyLax => [
+            "wave_cov",
             "wave_cov_stderr",
-            encode_c16(&[j, j], cov.std_error.as_slice()),
-        ),
-        ("wave_mean", encode_c16(&[j], &est.mean)),
-        ("wave_mean_stderr", encode_c16(&[j], &est.mean_std_error)),
-        (
+            "wave_mean",
+            "wave_mean_stderr",
             "wave_fields",
-            encode_c16(&fields_shape, est.fields.as_slice()),
-        ),
+        ],
+        Method::Multislice(_) => [
+            "multislice_cov",
+            "multislice_cov_stderr",
+            "multislice_mean",
+            "multislice_mean_stderr",
+            "multislice_fields",
+        ],
+    };
+    let arrays = [
+        (names[0], encode_c16(&[j, j], cov.value.as_slice())),
+        (names[1], encode_c16(&[j, j], cov.std_error.as_slice())),
+        (names[2], encode_c16(&[j], &est.mean)),
+        (names[3], encode_c16(&[j], &est.mean_std_error)),
+        (names[4], encode_c16(&fields_shape, est.fields.as_slice())),
     ];
     stage_arrays(&mut staged, &mut files, n, arrays);
     stage_magnitude_png(
@@ -116,11 +164,11 @@ pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> 
         &mut staged,
         &mut files,
         &cov.value,
-        &format!("{n}.wave_cov"),
+        &format!("{n}.{kind}_cov"),
     )?;
-    let naming = "<name>.wave.r{configuration}.s{source}.png";
-    let stem = format!("{n}.wave");
-    let images = FieldImages::new(p, est.fields.as_slice(), &stem, naming, &mut staged)?;
+    let naming = format!("<name>.{kind}.r{{configuration}}.s{{source}}.png");
+    let stem = format!("{n}.{kind}");
+    let images = FieldImages::new(p, est.fields.as_slice(), &stem, &naming, &mut staged)?;
     if let Some(png) = images.png.clone() {
         files["field_png"] = png;
     }
@@ -146,7 +194,7 @@ pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> 
     }
     let kernel = Kernel::new(p.dimension(), p.scene.wavenumber());
     let tau = kernel.t_matrix();
-    let render = json!({
+    let mut render = json!({
         "solver": "speckle-wave: Foldy-Lax multiple scattering, solved exactly (dense LU) for \
                    each configuration of resonant, lossless, isotropic point scatterers placed \
                    uniformly in the box, their number Poisson with mean n |V|",
@@ -161,14 +209,23 @@ pub fn write(p: &Problem, mut staged: Staged, est: &WaveEstimate, wall: f64) -> 
         "threads": threads(),
         "wall_time_s": wall,
     });
-    let meta = p.sidecar("wave", render, files, summary);
-    stage_sidecar(&mut staged, p, "wave", &meta)?;
+    if let Method::Multislice(settings) = &method {
+        for (key, v) in settings.as_object().into_iter().flatten() {
+            render[key] = v.clone();
+        }
+    }
+    let meta = p.sidecar(kind, render, files, summary);
+    stage_sidecar(&mut staged, p, kind, &meta)?;
+    let what = match method {
+        Method::FoldyLax => "exact wave",
+        Method::Multislice(_) => "multi-slice",
+    };
     say!(
-        "{n}: exact wave covariance of J = {j} pairs from {rr} configurations ({:.1} scatterers \
-         on average, {:.1} expected) in {wall:.2} s ({} threads); mean diagonal {diag:.4e} (max \
+        "{n}: {what} covariance of J = {j} pairs from {rr} configurations ({:.1} scatterers on \
+         average, {:.1} expected) in {wall:.2} s ({} threads); mean diagonal {diag:.4e} (max \
          relative stderr {:.2}%)",
         est.mean_scatterers,
-        cost.scatterers,
+        est.expected_scatterers,
         threads(),
         100.0 * max_relative_diagonal_error(cov)
     );
