@@ -158,6 +158,22 @@ pub fn write(
         &est.total.value,
         &format!("{n}.cov"),
     )?;
+    // The single- and multiple-scattering parts on the total's scale (Bar et al. 2019,
+    // Fig. 14).
+    let white = est
+        .total
+        .value
+        .as_slice()
+        .iter()
+        .map(|c| c.norm())
+        .fold(0.0, f64::max);
+    for (part, m) in [
+        ("single", &est.single.value),
+        ("multiple", &est.multiple.value),
+    ] {
+        let (stem, key) = (format!("{n}.cov_{part}"), format!("png_{part}"));
+        stage_part_png(p, &mut staged, &mut files, m, &stem, &key, Some(white))?;
+    }
     let total_diag = mean_diagonal(&est.total.value);
     let max_rel = max_relative_diagonal_error(&est.total);
     let summary = json!({

@@ -395,20 +395,38 @@ pub fn stage_magnitude_png(
     m: &CMatrix,
     stem: &str,
 ) -> anyhow::Result<()> {
+    stage_part_png(p, staged, files, m, stem, "png", None)
+}
+
+/// [`stage_magnitude_png`] under the key `key` of `files`, scaled by `white` (the largest
+/// `|C|` of `m` when `None`): the parts of a covariance on the scale of its total.
+pub fn stage_part_png(
+    p: &Problem,
+    staged: &mut Staged,
+    files: &mut Value,
+    m: &CMatrix,
+    stem: &str,
+    key: &str,
+    white: Option<f64>,
+) -> anyhow::Result<()> {
     if !p.output.png {
         return Ok(());
     }
     let v: Vec<f64> = m.as_slice().iter().map(|c| c.norm()).collect();
-    let max = v.iter().copied().fold(0.0, f64::max);
+    let max = white.unwrap_or_else(|| v.iter().copied().fold(0.0, f64::max));
     let scale = p.png_scale(m.cols(), m.rows()).map_err(in_scene(p))?;
     let png = Gray::from_values(m.cols(), m.rows(), &v, max)
         .upscaled(scale)
         .encode_png()?;
     let file = format!("{stem}.png");
     staged.add(file.clone(), png);
-    files["png"] = json!({
+    files[key] = json!({
         "file": file,
-        "scale": "gray = round(255 |C| / max |C|), pixel replication",
+        "scale": if white.is_some() {
+            "gray = round(255 |C| / max |C of the total|), pixel replication"
+        } else {
+            "gray = round(255 |C| / max |C|), pixel replication"
+        },
     });
     Ok(())
 }
