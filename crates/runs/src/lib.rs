@@ -23,6 +23,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod band;
 pub mod checksum;
 pub mod detectors;
 mod file;
@@ -37,6 +38,7 @@ pub mod temporal;
 pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
+pub use band::{BandChoice, band_radius};
 pub use plan::{Plan, plan};
 pub use read::MAX_HEADER_BYTES;
 pub use temporal::{Temporal, temporal};

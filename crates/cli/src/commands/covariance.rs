@@ -22,9 +22,36 @@ pub struct Args {
     pub no_png: bool,
     /// Covariance only: keep the entries whose sensors are within R pixels of each other
     /// along both axes of the scene's image of sensors (a band around the diagonal, for images
-    /// whose dense covariance would not fit), written as `<name>.cov_band.npy`.
-    #[arg(long, value_name = "R")]
-    pub band: Option<usize>,
+    /// whose dense covariance would not fit), written as `<name>.cov_band.npy`. `auto`: R from
+    /// a pilot's correlation curve of the central pixel, keeping every offset where it reaches
+    /// `--epsilon`.
+    #[arg(long, value_name = "R|auto")]
+    pub band: Option<BandRadius>,
+    /// With `--band auto`: the correlation `|C| / C(0)` below which pixel offsets are dropped.
+    #[arg(long, value_name = "EPS", default_value_t = 0.01, requires = "band")]
+    pub epsilon: f64,
+}
+
+/// The half-width of `--band`: pixels, or chosen by a pilot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BandRadius {
+    /// A number of pixels.
+    Pixels(usize),
+    /// From a pilot's correlation curve and `--epsilon`.
+    Auto,
+}
+
+impl std::str::FromStr for BandRadius {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "auto" {
+            return Ok(Self::Auto);
+        }
+        s.parse()
+            .map(Self::Pixels)
+            .map_err(|_| format!("a number of pixels or `auto` (got `{s}`)"))
+    }
 }
 
 impl Args {
@@ -44,14 +71,46 @@ pub use speckle::runs::covariance_options as options;
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
     match a.band {
-        Some(r) => render_band(&p, run, r),
+        Some(BandRadius::Pixels(r)) => render_band(&p, run, r, None),
+        Some(BandRadius::Auto) => {
+            let progress = speckle::estimators::NoProgress;
+            let c =
+                speckle::runs::band_radius(&p, a.epsilon, None, &progress).map_err(error::runs)?;
+            let fmt = |v: &[f64]| {
+                let s: Vec<String> = v.iter().take(12).map(|r| format!("{r:.3}")).collect();
+                s.join(" ")
+            };
+            say!(
+                "{}: --band auto: radius {} px, the last offset where the pilot's |C| / C(0) \
+                 (pair {}, {} paths) reaches {}; along x: {}; along y: {}{}",
+                p.name,
+                c.radius,
+                c.pair,
+                c.paths,
+                c.epsilon,
+                fmt(&c.curves[0]),
+                fmt(&c.curves[1]),
+                if c.whole_image {
+                    " (the whole image: the dense covariance keeps the same)"
+                } else {
+                    ""
+                }
+            );
+            let r = c.radius;
+            render_band(&p, run, r, Some(c))
+        }
         None => render(&p, run),
     }
 }
 
 /// Renders and writes the band of half-width `radius` pixels of the covariance of `p`, whose
 /// sensors must form one image ([`speckle::estimators::render_covariance_band`]).
-fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()> {
+fn render_band(
+    p: &Problem,
+    run: RunOptions,
+    radius: usize,
+    auto: Option<speckle::runs::BandChoice>,
+) -> anyhow::Result<()> {
     use speckle::estimators::{ImageBand, render_covariance_band};
     run.whole_only(p, "covariance --band")?;
     let grid = p.grid.as_ref().ok_or_else(|| {
@@ -83,13 +142,26 @@ fn render_band(p: &Problem, run: RunOptions, radius: usize) -> anyhow::Result<()
     ];
     stage_arrays(&mut staged, &mut files, n, arrays);
     let edge = est.edge_correlation();
-    let summary = json!({
+    let mut summary = json!({
         "radius": radius,
         "shape": shape,
         "kept_entries": kept,
         "edge_correlation": edge,
         "mean_correlation_by_offset": est.mean_correlation(),
     });
+    if let Some(c) = &auto {
+        summary["auto"] = json!({
+            "epsilon": c.epsilon,
+            "pilot_pair": c.pair,
+            "pilot_paths": c.paths,
+            "pilot_correlation_x": c.curves[0],
+            "pilot_correlation_y": c.curves[1],
+            "whole_image": c.whole_image,
+            "method": "the pilot's |C(s)| / C(0) of the central pixel under sensor tilts of \
+                       1, 2, ... pixels along each axis; the radius is the largest offset \
+                       where it reaches epsilon",
+        });
+    }
     let render = p.render.paths_json(threads(), wall);
     let meta = p.sidecar("covariance_band", render, files, summary);
     stage_sidecar(&mut staged, p, "cov_band", &meta)?;
