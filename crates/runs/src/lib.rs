@@ -35,10 +35,10 @@ pub mod plan;
 mod read;
 pub mod temporal;
 
+pub use band::{BandChoice, band_radius};
 pub use file::{Header, ShardData, ShardFile};
 pub use identity::run_hash;
 pub use merge::{Merged, merge, merge_files};
-pub use band::{BandChoice, band_radius};
 pub use plan::{Plan, plan};
 pub use read::MAX_HEADER_BYTES;
 pub use temporal::{Temporal, temporal};
