@@ -142,6 +142,14 @@ enum Command {
     /// study file of its own (`scenes/fig13_seeing_through.toml`) and writes
     /// `<name>.*.npy`, a JSON sidecar and a PNG mosaic.
     SeeingThrough(seeing_through::Args),
+    /// The phase of path permutations (Bar et al. 2019, Appendix A.3, Figs. 15-16): for three
+    /// vertices between a plane wave and a far-field sensor in flatland, the phase of
+    /// mu(x) mu(x_P)^* over one vertex for the six vertex orders P (constant for the forward
+    /// order, and for the reversed one at backscattering), and the integrals over two vertices
+    /// relative to the forward one; reads a study file of its own
+    /// (`scenes/fig15_permutations.toml`) and writes `<name>.*.npy`, a PNG of the phase maps,
+    /// an SVG bar chart and a JSON sidecar.
+    Permutations(permutations::Args),
     /// The near field against the brute force (Bar et al. 2020, Fig. 7, Tables 1-2): the
     /// closed-form aperture connections of Gaussian beams against the aperture integral of
     /// far-field per-path fields (Eqs. 9-11) in flatland, entry by entry, and the time for the
@@ -196,6 +204,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::TiltShift(a) => tilt_shift::run(&a),
         Command::Refocus(a) => refocus::run(&a),
         Command::SeeingThrough(a) => seeing_through::run(&a),
+        Command::Permutations(a) => permutations::run(&a),
         Command::Bruteforce(a) => bruteforce::run(&a),
         Command::SamplingGain(a) => sampling_gain::run(&a),
         Command::Emc(a) => emc::run(&a),

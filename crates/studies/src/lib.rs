@@ -18,6 +18,9 @@
 //!   al. 2023, Fig. 10);
 //! - [`seeing`]: seeing through scattering (Katz et al. 2014; Bar et al. 2019, Fig. 13):
 //!   sampled speckle images of a hidden object, their autocorrelation and phase retrieval;
+//! - [`permutations`]: the phase of path permutations and their integrals (Bar et al. 2019,
+//!   Appendix A.3, Figs. 15-16): flatland throughputs of three-vertex paths, integrated by
+//!   Monte Carlo;
 //! - [`examples`]: the embedded study files of both panels of Fig. 11.
 //!
 //! Design decision: a study is a library, not a command: its schema, validation, band
@@ -34,6 +37,7 @@ pub mod curves;
 pub mod examples;
 pub mod memory;
 pub mod nearfield;
+pub mod permutations;
 pub mod plot;
 pub mod seeing;
 pub mod shaping;

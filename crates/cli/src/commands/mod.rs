@@ -19,6 +19,7 @@ pub mod memory_spectrum;
 pub mod memory_tilt;
 pub mod merge;
 pub mod mie;
+pub mod permutations;
 pub mod plan;
 pub mod refocus;
 pub mod sampling_gain;
@@ -116,7 +117,7 @@ pub struct StudyOptions {
     /// Sub-paths per point of the study: per wavelength (memory-spectrum), value of g
     /// (memory-tilt), grid point (tilt-shift) or displacement (refocus); the brute-force paths
     /// (bruteforce); the largest path count of the sweep (sampling-gain) (replaces
-    /// `render.paths`).
+    /// `render.paths`); the Monte Carlo samples (permutations, `render.samples`).
     #[arg(long, value_name = "N")]
     pub paths: Option<u64>,
     /// Seed (replaces `render.seed`).
