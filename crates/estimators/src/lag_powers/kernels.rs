@@ -7,6 +7,10 @@ pub(super) const TINY: f64 = 1e-280;
 /// `r^n` by repeated squaring (no fused multiply-adds: the same on every instruction set).
 #[inline]
 pub(super) fn whole_power(r: f64, mut n: usize) -> f64 {
+    if n == 2 {
+        // (The same product as below, without the loop: a multi-tau grid's levels.)
+        return r * r;
+    }
     let (mut acc, mut sq) = (1.0, r);
     while n > 0 {
         if n & 1 == 1 {
@@ -104,32 +108,5 @@ pub(super) fn scale_add<S: pulp::Simd>(simd: S, s: &mut [f64], p: &[f64], a: f64
     }
     for (s, p) in st.iter_mut().zip(pt) {
         *s += a * p;
-    }
-}
-
-/// A term's base `exp(-x s)` and offset factor `exp(-x o)` at a run of offset `o` and step `s`
-/// (`run`), from its `state` at the previous run (`prev`, `None` for the first): by products
-/// where the previous step divides the step and the change of offset (a multi-tau grid: the
-/// base squared, the factor times the previous run's last power), else by exponentials.
-#[inline]
-pub(super) fn next_run(
-    prev: Option<(usize, usize)>,
-    run: (usize, usize),
-    x: f64,
-    state: (f64, f64),
-) -> (f64, f64) {
-    let (o, s) = run;
-    match prev {
-        Some((po, ps)) if s.is_multiple_of(ps) && o >= po && (o - po).is_multiple_of(ps) => {
-            let (base, factor) = state;
-            (
-                whole_power(base, s / ps),
-                factor * whole_power(base, (o - po) / ps),
-            )
-        }
-        _ => {
-            let factor = if o == 0 { 1.0 } else { exp_neg(x * o as f64) };
-            (exp_neg(x * s as f64), factor)
-        }
     }
 }

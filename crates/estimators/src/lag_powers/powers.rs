@@ -93,9 +93,12 @@ impl Powers {
     /// Lags whose largest step count exceeds [`Self::DENSE`] (a multi-tau grid: eight lags per
     /// level, the step doubling per level), split into runs of equally spaced step counts
     /// `m = o + s m'`, `m' = 1, 2, ...` (up to [`Self::RUN`] distinct ones), each with the
-    /// powers of its own step `s` from offset `o`: `exp(-x m) = exp(-x o) (exp(-x s))^m'`, one
-    /// exponential per run and term instead of products up to the largest step count. A
+    /// powers of its own step `s` from offset `o`: `exp(-x m) = exp(-x o) (exp(-x s))^m'`. A
     /// lag's rounding becomes `eps m / (m - o)` within its run. `None` for denser grids.
+    ///
+    /// Such a grid is *sparse*: [`super::PowerSums`] takes it segment by segment (up to eight
+    /// equally spaced lags, one vector product each) and [`super::SlotSums`] lag by lag, both
+    /// with the multiplier of each gap formed by squaring, rather than step by step.
     pub(super) fn runs(&self) -> Option<Vec<(usize, usize, Powers)>> {
         let n = self.order.len();
         if self.order.last()?.1 <= Self::DENSE {

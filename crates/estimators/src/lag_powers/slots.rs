@@ -1,7 +1,7 @@
 //! [`SlotSums`]: real sums of `z r^(m_l)` with one vector lane per entry.
 
 use super::Powers;
-use super::kernels::{exp_neg, next_run};
+use super::kernels::exp_neg;
 use super::sums::PowerSums;
 use num_complex::Complex64;
 use speckle_stats::BatchSum;
@@ -9,13 +9,19 @@ use speckle_stats::BatchSum;
 /// Real sums `sum z r^(m_l)` of the lags of a [`Powers`], one vector lane per entry: every
 /// entry has the same term combinations (`P` of them: its forward, crossed and reversed terms,
 /// say), one *slot* each, filled at every vertex, so that the powers of eight entries' terms
-/// are formed together by repeated products, `z r^(m + 1) = (z r^m) r`, and an entry's
-/// combinations added in registers before its sum is loaded and stored once per lag. This
-/// needs no per-term set-up, which is what costs in [`PowerSums`] when a vertex has tens of
-/// terms. The sums are lag-major, `[k E + e]`, `E` the entries rounded up to a multiple of
-/// eight. A repeated product differs from `exp(-m x)` by rounding only (`m` products, at most
-/// `m` ulps, against a few for [`PowerSums`]); a term whose powers would underflow within the
-/// lags goes through a scalar loop of the same products that stops below
+/// are formed together by repeated products and an entry's combinations added in registers
+/// before its sum is loaded and stored once per lag. This needs no per-term set-up, which is
+/// what costs in [`PowerSums`] when a vertex has tens of terms. The sums are lag-major,
+/// `[k E + e]`, `E` the entries rounded up to a multiple of eight.
+///
+/// The powers go lag by lag, `z r^(m_k) = (z r^(m_(k-1))) r^(m_k - m_(k-1))`: one vector
+/// product per lag whatever the gaps between the step counts (a multi-tau grid, eight lags per
+/// level and the step doubling per level, costs what a regular grid of as many lags does), the
+/// multiplier `r^gap` formed by squaring when the gap changes (from the previous multiplier
+/// where the gap is a multiple of the previous one: once per level of a multi-tau grid). A
+/// power of `m` steps is within about `m` ulps of `exp(-m x)` (an ulp of `r` is `m` ulps of
+/// `r^m`; the products add one each, the squarings a few). A term whose powers would underflow
+/// within the lags goes through a scalar loop of the same products that stops below
 /// [`PowerSums::TINY`].
 ///
 /// Like [`PowerSums`], the loops are compiled for the instruction sets the CPU has and use no
@@ -23,15 +29,14 @@ use speckle_stats::BatchSum;
 pub(crate) struct SlotSums {
     /// The lags' indices `l` in the order of the sums.
     lags: Vec<usize>,
-    /// Their step counts `m_l`, increasing.
-    steps: Vec<usize>,
+    /// The gaps between their step counts `m_l` (increasing), `m_k - m_(k-1)` (`m_(-1) = 0`;
+    /// zero between lags of equal `|t|`).
+    gaps: Vec<usize>,
     /// Term combinations per entry (`P`), and entries.
     per_entry: usize,
     entries: usize,
     /// Entries rounded up to a multiple of eight (`E`).
     width: usize,
-    /// Whether `steps[k] == k + 1` (every step a lag).
-    contiguous: bool,
     /// A vertex's terms, `[(b P + c) 8 + i]` for entry `8 b + i` and combination `c` (zero
     /// where not set): weights and exponents (the bases are `r = exp(-x)`), and scratch for
     /// the bases.
@@ -56,14 +61,33 @@ pub(crate) struct SlotSums {
     /// Lags rounded to within [`Powers::ROUNDING`]: the sums at the stretched step and the
     /// stretch of the exponents, as [`PowerSums`]'s.
     twin: Option<(Box<SlotSums>, f64)>,
-    /// A sparse grid's runs ([`Powers::runs`]): their sums, offsets and steps, as
-    /// [`PowerSums`]'s (the sums of this one then hold no lags).
-    runs: Vec<(SlotSums, usize, usize)>,
-    /// Whether the bases `r` of the terms are given by the caller (a run's, chained from the
-    /// previous run's) rather than formed from the exponents.
-    given: bool,
-    /// Scratch of a sparse grid: each term's base and offset factor at the current run.
-    chain: Vec<(f64, f64)>,
+}
+
+/// The multiplier of the next gap: `r^gap` from the current multiplier `g = r^cur`, by
+/// squaring, from `g` where `gap` is a multiple of `cur` (lane by lane, in the same products
+/// as [`super::kernels::whole_power`]).
+#[inline(always)]
+fn next_multiplier<const N: usize>(g: &mut [f64; N], r: &[f64; N], cur: usize, gap: usize) {
+    let (base, n) = if gap.is_multiple_of(cur) {
+        (*g, gap / cur)
+    } else {
+        (*r, gap)
+    };
+    let (mut acc, mut sq, mut n) = ([1.0; N], base, n);
+    while n > 0 {
+        if n & 1 == 1 {
+            for (a, s) in acc.iter_mut().zip(&sq) {
+                *a *= s;
+            }
+        }
+        n >>= 1;
+        if n > 0 {
+            for s in sq.iter_mut() {
+                *s *= *s;
+            }
+        }
+    }
+    *g = acc;
 }
 
 impl SlotSums {
@@ -79,15 +103,6 @@ impl SlotSums {
     /// lags of `p`.
     pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
         let mut sums = Self::at_step(p, entries, per_entry, p.weights(false));
-        if sums.few.is_none()
-            && let Some(runs) = p.runs()
-        {
-            sums.runs = runs
-                .iter()
-                .map(|(o, s, run)| (Self::new(run, entries, per_entry), *o, *s))
-                .collect();
-            return sums;
-        }
         if p.eta != 0.0 && sums.few.is_none() {
             let twin = Self::at_step(p, entries, per_entry, p.weights(true));
             sums.twin = Some((Box::new(twin), 1.0 + p.eta));
@@ -104,14 +119,16 @@ impl SlotSums {
         let (lags, steps) = p.lags_and_steps();
         let width = entries.div_ceil(Self::LANES) * Self::LANES;
         let most = steps.last().copied().unwrap_or(1).max(1);
+        let gaps = (0..steps.len())
+            .map(|k| steps[k] - if k == 0 { 0 } else { steps[k - 1] })
+            .collect();
         Self {
-            contiguous: steps.iter().enumerate().all(|(k, &m)| m == k + 1),
+            gaps,
             z: vec![0.0; width * per_entry],
             x: vec![0.0; width * per_entry],
             r: vec![0.0; width * per_entry],
             sums: vec![0.0; lags.len() * width],
             lags,
-            steps,
             per_entry,
             entries,
             width,
@@ -122,9 +139,6 @@ impl SlotSums {
             terms: Vec::new(),
             weights,
             twin: None,
-            runs: Vec::new(),
-            given: false,
-            chain: Vec::new(),
         }
     }
 
@@ -163,35 +177,6 @@ impl SlotSums {
             self.z.fill(0.0);
             return;
         }
-        if !self.runs.is_empty() {
-            // Each run takes the terms `(z exp(-x o), x s)` with their bases `exp(-x s)`,
-            // chained from the previous run's by products where its step divides (as
-            // `PowerSums::add_runs`).
-            self.chain.clear();
-            self.chain.resize(self.z.len(), (0.0, 1.0));
-            let mut prev = None;
-            for (run, offset, stride) in &mut self.runs {
-                let step = (*offset, *stride);
-                for (k, c) in self.chain.iter_mut().enumerate() {
-                    let x = self.x[k];
-                    *c = next_run(prev, step, x, *c);
-                    // A term whose first power in the run is below `TINY` adds nothing there.
-                    let z = self.z[k] * c.1;
-                    run.z[k] = if (z * c.0).abs() < PowerSums::TINY {
-                        0.0
-                    } else {
-                        z
-                    };
-                    run.x[k] = x * step.1 as f64;
-                    run.r[k] = c.0;
-                }
-                prev = Some(step);
-                run.given = true;
-                run.add();
-            }
-            self.z.fill(0.0);
-            return;
-        }
         if let Some((twin, stretch)) = &mut self.twin {
             twin.z.copy_from_slice(&self.z);
             for (x, &y) in twin.x.iter_mut().zip(&self.x) {
@@ -220,8 +205,7 @@ impl SlotSums {
         self.flush_parts(sums, &part, buf);
     }
 
-    /// [`Self::flush`] through a reference to `part` (the twin and the runs flush the same
-    /// way).
+    /// [`Self::flush`] through a reference to `part` (the twin flushes the same way).
     fn flush_parts(
         &mut self,
         sums: &mut [BatchSum],
@@ -248,9 +232,6 @@ impl SlotSums {
         if let Some((twin, _)) = &mut self.twin {
             twin.flush_parts(sums, part, buf);
         }
-        for (run, _, _) in &mut self.runs {
-            run.flush_parts(sums, part, buf);
-        }
     }
 }
 
@@ -274,7 +255,7 @@ impl SlotTerms<'_> {
 }
 
 /// [`SlotSums::add`]'s loops for `P` combinations per entry, compiled for each instruction set
-/// (as [`AddLags`]).
+/// (as [`PowerSums`]'s).
 struct AddSlots<'a, const P: usize> {
     sums: &'a mut SlotSums,
 }
@@ -284,20 +265,16 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
 
     /// The bases `r = exp(-x)` ([`exp_neg`]); a term whose powers would underflow is taken out
     /// of the vectors (its weight zero there) and added by a scalar loop of the same products;
-    /// then, per block of eight entries, `q_c = z_c r_c` for each combination `c`, and at each
-    /// step `m` up to the largest lag's, `sums[k] += q_1 + ... + q_P` for the lags `k` of that
-    /// step, `q_c *= r_c`.
+    /// then, per block of eight entries, lag by lag, `q_c *= r_c^gap` for each combination `c`
+    /// (from `q_c = z_c`) and `sums[k] += q_1 + ... + q_P`.
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, simd: S) {
         const L: usize = SlotSums::LANES;
         let t = self.sums;
-        if !t.given {
-            for (r, x) in t.r.iter_mut().zip(&t.x) {
-                *r = exp_neg(*x);
-            }
+        for (r, x) in t.r.iter_mut().zip(&t.x) {
+            *r = exp_neg(*x);
         }
         let (n, w) = (t.lags.len(), t.width);
-        let last = t.steps.last().copied().unwrap_or(0);
         // (Whether any term underflows, without a branch per term.)
         let least = t.least;
         let low =
@@ -311,20 +288,22 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
             let (z, r) = (t.z[s], t.r[s]);
             t.z[s] = 0.0;
             let e = (s / (P * L)) * L + s % L;
-            let mut q = z * r;
-            let mut k = 0;
-            for m in 1..=last {
-                if q.abs() < PowerSums::TINY {
+            let (mut q, mut g, mut cur) = ([z], [r], 1);
+            for k in 0..n {
+                let gap = t.gaps[k];
+                if gap != 0 {
+                    if gap != cur {
+                        next_multiplier(&mut g, &[r], cur, gap);
+                        cur = gap;
+                    }
+                    q[0] *= g[0];
+                }
+                if q[0].abs() < PowerSums::TINY {
                     break;
                 }
-                while k < n && t.steps[k] == m {
-                    t.sums[k * w + e] += q;
-                    k += 1;
-                }
-                q *= r;
+                t.sums[k * w + e] += q[0];
             }
         }
-        let contiguous = t.contiguous;
         // Two blocks at a time (`2 P` independent chains of products), then the last alone;
         // blocks without terms are skipped.
         let mut held = None;
@@ -334,24 +313,23 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
             }
             match held.take() {
                 None => held = Some(b),
-                Some(a) => add_blocks::<S, P, 2>(simd, t, [a, b], contiguous),
+                Some(a) => add_blocks::<S, P, 2>(simd, t, [a, b]),
             }
         }
         if let Some(a) = held {
-            add_blocks::<S, P, 1>(simd, t, [a], contiguous);
+            add_blocks::<S, P, 1>(simd, t, [a]);
         }
     }
 }
 
 /// [`AddSlots`] for `B` blocks of eight entries at once (their powers' chains of products
-/// interleaved): `q = z r`, and at each step `m` up to the largest lag's, `sums[k] += q_1 +
-/// ... + q_P` for the lags `k` of that step, `q *= r`.
+/// interleaved): `q = z`, and at each lag `k`, `q *= g` (`g = r^gap`, unchanged between lags of
+/// equal `|t|`) and `sums[k] += q_1 + ... + q_P`.
 #[inline(always)]
 fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     simd: S,
     t: &mut SlotSums,
     blocks: [usize; B],
-    contiguous: bool,
 ) {
     const L: usize = SlotSums::LANES;
     let (n, w) = (t.lags.len(), t.width);
@@ -362,51 +340,32 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
             let i = (b * P + c) * L;
             r[j][c].copy_from_slice(&t.r[i..i + L]);
             q[j][c].copy_from_slice(&t.z[i..i + L]);
-            let (qv, _) = S::as_mut_simd_f64s(&mut q[j][c]);
-            let (rv, _) = S::as_simd_f64s(&r[j][c]);
-            for (q, r) in qv.iter_mut().zip(rv) {
-                *q = simd.mul_f64s(*q, *r);
+        }
+    }
+    // The multipliers of the current gap `cur`.
+    let mut g = r;
+    let mut cur = 1;
+    for k in 0..n {
+        let gap = t.gaps[k];
+        if gap != 0 && gap != cur {
+            for (gj, rj) in g.iter_mut().zip(&r) {
+                for (gc, rc) in gj.iter_mut().zip(rj) {
+                    next_multiplier(gc, rc, cur, gap);
+                }
             }
+            cur = gap;
         }
-    }
-    if contiguous {
-        for k in 0..n {
-            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), true, &mut q);
-        }
-        return;
-    }
-    let mut k = 0;
-    for m in 1..=t.steps.last().copied().unwrap_or(0) {
-        // Equal steps (lags `t` and `-t`) take the same powers.
-        while k + 1 < n && t.steps[k + 1] == m && t.steps[k] == m {
-            step_blocks(simd, &mut t.sums, w, &blocks, &r, Some(k), false, &mut q);
-            k += 1;
-        }
-        let at = (k < n && t.steps[k] == m).then_some(k);
-        k += usize::from(at.is_some());
-        step_blocks(simd, &mut t.sums, w, &blocks, &r, at, true, &mut q);
-    }
-}
-
-/// One step of [`add_blocks`]: the sums of lag `k` (none between gathered lags), then, if
-/// `advance` (not between lags of equal steps), the next powers. (A function rather than a
-/// closure, so that it is inlined with the instruction set of its caller.)
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
-    simd: S,
-    sums: &mut [f64],
-    w: usize,
-    blocks: &[usize; B],
-    r: &[[[f64; SlotSums::LANES]; P]; B],
-    k: Option<usize>,
-    advance: bool,
-    q: &mut [[[f64; SlotSums::LANES]; P]; B],
-) {
-    const L: usize = SlotSums::LANES;
-    for (j, &b) in blocks.iter().enumerate() {
-        if let Some(k) = k {
-            let row = &mut sums[k * w + b * L..][..L];
+        for (j, &b) in blocks.iter().enumerate() {
+            if gap != 0 {
+                for (qc, gc) in q[j].iter_mut().zip(&g[j]) {
+                    let (qv, _) = S::as_mut_simd_f64s(qc);
+                    let (gv, _) = S::as_simd_f64s(gc);
+                    for (q, g) in qv.iter_mut().zip(gv) {
+                        *q = simd.mul_f64s(*q, *g);
+                    }
+                }
+            }
+            let row = &mut t.sums[k * w + b * L..][..L];
             let (sv, _) = S::as_mut_simd_f64s(row);
             for (v, s) in sv.iter_mut().enumerate() {
                 let mut acc = *s;
@@ -414,16 +373,6 @@ fn step_blocks<S: pulp::Simd, const P: usize, const B: usize>(
                     acc = simd.add_f64s(acc, S::as_simd_f64s(qc).0[v]);
                 }
                 *s = acc;
-            }
-        }
-        if !advance {
-            continue;
-        }
-        for (qc, rc) in q[j].iter_mut().zip(&r[j]) {
-            let (qv, _) = S::as_mut_simd_f64s(qc);
-            let (rv, _) = S::as_simd_f64s(rc);
-            for (q, r) in qv.iter_mut().zip(rv) {
-                *q = simd.mul_f64s(*q, *r);
             }
         }
     }

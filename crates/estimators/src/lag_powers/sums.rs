@@ -1,7 +1,7 @@
 //! [`PowerSums`]: sums of `z r^(m_l)` per entry and lag, one term at a time.
 
 use super::Powers;
-use super::kernels::{exp_neg, first_eight, multipliers, next_run, scale_add};
+use super::kernels::{exp_neg, first_eight, multipliers, scale_add, whole_power};
 use num_complex::Complex64;
 use speckle_stats::BatchSum;
 
@@ -52,13 +52,47 @@ pub(crate) struct PowerSums {
     twin: Option<(Box<PowerSums>, f64)>,
     /// Scratch: the stretched terms.
     stretched: Vec<(usize, Complex64, f64)>,
-    /// A sparse grid's runs ([`Powers::runs`]): their sums, offsets and steps (the sums of
-    /// this one then hold no lags).
-    runs: Vec<(PowerSums, usize, usize)>,
-    /// Scratch of a sparse grid: each term's base and offset factor at the current run, and
-    /// the bases of the terms a run takes.
-    chain: Vec<(f64, f64)>,
-    bases: Vec<f64>,
+    /// A sparse grid's segments ([`Segment`]; a multi-tau grid, whose [`Powers::runs`] are
+    /// some), or none.
+    segments: Vec<Segment>,
+}
+
+/// Up to eight successive lags (in the order of the sums) whose step counts are equally spaced
+/// from the lag before them: `m_(start + j) = m_(start - 1) + gap (j + 1)`, `j < count`
+/// (`m_(-1) = 0`; `gap` zero for lags of equal `|t|`). A multi-tau grid is one segment per
+/// level.
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    start: usize,
+    count: usize,
+    gap: usize,
+    /// One for `j < count`, zero after.
+    mask: [f64; 8],
+}
+
+impl Segment {
+    /// The segments of lags of increasing step counts `steps`.
+    fn of(steps: &[usize]) -> Vec<Self> {
+        let mut out: Vec<Self> = Vec::new();
+        let mut prev = 0;
+        for (k, &m) in steps.iter().enumerate() {
+            let gap = m - prev;
+            prev = m;
+            match out.last_mut() {
+                Some(s) if s.gap == gap && s.count < 8 => s.count += 1,
+                _ => out.push(Self {
+                    start: k,
+                    count: 1,
+                    gap,
+                    mask: [0.0; 8],
+                }),
+            }
+        }
+        for s in &mut out {
+            s.mask[..s.count].fill(1.0);
+        }
+        out
+    }
 }
 
 impl PowerSums {
@@ -68,20 +102,6 @@ impl PowerSums {
     /// Empty sums of `entries` entries at the lags of `p` (with the sums at the stretched step
     /// when the lags are rounded multiples of it).
     pub fn new(p: &Powers, entries: usize) -> Self {
-        if let Some(runs) = p.runs() {
-            let empty = Powers {
-                delta: p.delta,
-                order: vec![],
-                rounding: vec![],
-                eta: 0.0,
-            };
-            let mut sums = Self::at_step(&empty, entries, vec![]);
-            sums.runs = runs
-                .iter()
-                .map(|(o, s, run)| (Self::new(run, entries), *o, *s))
-                .collect();
-            return sums;
-        }
         let mut sums = Self::at_step(p, entries, p.weights(false));
         if p.eta != 0.0 {
             let twin = Self::at_step(p, entries, p.weights(true));
@@ -98,7 +118,13 @@ impl PowerSums {
         let contiguous = steps.iter().enumerate().all(|(k, &m)| m == k + 1);
         let max = steps.last().copied().unwrap_or(0);
         let n = lags.len();
-        let row = n.div_ceil(8) * 8;
+        // A sparse grid's segments, and room for a last segment's eight lanes past the lags.
+        let segments = if p.runs().is_some() {
+            Segment::of(&steps)
+        } else {
+            Vec::new()
+        };
+        let row = (n + if segments.is_empty() { 0 } else { 8 }).div_ceil(8) * 8;
         let chunks = row / 8;
         let whole = if chunks <= 8 {
             let lead = (8 * chunks.max(1) - 7) as f64;
@@ -125,58 +151,13 @@ impl PowerSums {
             weights,
             twin: None,
             stretched: Vec::new(),
-            runs: Vec::new(),
-            chain: Vec::new(),
-            bases: Vec::new(),
+            segments,
         }
     }
 
     /// Adds `z r^(m_l)`, `r = exp(-x)`, to entry `e` at every lag `l`, for every term
     /// `(e, z, x)` of `terms` (`x >= 0`).
     pub fn add(&mut self, terms: &[(usize, Complex64, f64)]) {
-        if terms.is_empty() {
-            return;
-        }
-        if self.runs.is_empty() {
-            self.add_with_bases(terms, None);
-        } else {
-            self.add_runs(terms);
-        }
-    }
-
-    /// [`Self::add`] for a sparse grid's runs: to run `r` (offset `o`, step `s`) each term goes
-    /// as `(z exp(-x o), x s)` with its base `exp(-x s)`. Each run's base and offset factor
-    /// follow from the previous run's by products where the steps and offsets are whole
-    /// multiples of the previous step (a multi-tau grid: the base squared, the offset factor
-    /// times the previous run's last power), else by an exponential: one exponential per term
-    /// rather than two per run and term, within the rounding of the products that form powers
-    /// anyway.
-    fn add_runs(&mut self, terms: &[(usize, Complex64, f64)]) {
-        self.touched = true;
-        self.chain.clear();
-        self.chain.resize(terms.len(), (0.0, 1.0));
-        let mut prev = None;
-        for (sums, offset, stride) in &mut self.runs {
-            let run = (*offset, *stride);
-            self.stretched.clear();
-            self.bases.clear();
-            for (c, &(e, z, x)) in self.chain.iter_mut().zip(terms) {
-                *c = next_run(prev, run, x, *c);
-                let z = z * c.1;
-                // A term whose first power in the run is below `TINY` adds nothing there.
-                if z.norm() * c.0 >= PowerSums::TINY {
-                    self.stretched.push((e, z, x * run.1 as f64));
-                    self.bases.push(c.0);
-                }
-            }
-            prev = Some(run);
-            sums.add_with_bases(&self.stretched, Some(&self.bases));
-        }
-    }
-
-    /// [`Self::add`] at this step, with the terms' bases `r` given or (`None`) formed from
-    /// their exponents (the twin, if any, forms its own).
-    fn add_with_bases(&mut self, terms: &[(usize, Complex64, f64)], bases: Option<&[f64]>) {
         if terms.is_empty() {
             return;
         }
@@ -189,11 +170,7 @@ impl PowerSums {
         }
         self.touched = true;
         let arch = self.arch;
-        arch.dispatch(AddLags {
-            sums: self,
-            terms,
-            bases,
-        });
+        arch.dispatch(AddLags { sums: self, terms });
     }
 
     /// [`Self::add`] for terms whose exponent often repeats within an entry (single scattering
@@ -232,8 +209,7 @@ impl PowerSums {
         self.flush_parts(sums, &part, buf);
     }
 
-    /// [`Self::flush`] (through a reference to `part`: the twin and the runs flush the same
-    /// way).
+    /// [`Self::flush`] (through a reference to `part`: the twin flushes the same way).
     pub(super) fn flush_parts(
         &mut self,
         sums: &mut [BatchSum],
@@ -265,9 +241,6 @@ impl PowerSums {
         if let Some((twin, _)) = &mut self.twin {
             twin.flush_parts(sums, part, buf);
         }
-        for (run, _, _) in &mut self.runs {
-            run.flush_parts(sums, part, buf);
-        }
     }
 }
 
@@ -276,8 +249,6 @@ impl PowerSums {
 struct AddLags<'a> {
     sums: &'a mut PowerSums,
     terms: &'a [(usize, Complex64, f64)],
-    /// The terms' bases when given ([`PowerSums::add_with_bases`]).
-    bases: Option<&'a [f64]>,
 }
 
 impl pulp::WithSimd for AddLags<'_> {
@@ -292,15 +263,17 @@ impl pulp::WithSimd for AddLags<'_> {
     fn with_simd<S: pulp::Simd>(self, simd: S) {
         let t = self.sums;
         t.rs.clear();
-        if let Some(b) = self.bases {
-            t.rs.extend_from_slice(b);
-        } else {
-            t.rs.extend(self.terms.iter().map(|term| term.2));
-            for r in &mut t.rs {
-                *r = exp_neg(*r);
-            }
+        t.rs.extend(self.terms.iter().map(|term| term.2));
+        for r in &mut t.rs {
+            *r = exp_neg(*r);
         }
         let terms = self.terms;
+        if !t.segments.is_empty() {
+            for (&(e, z, _), i) in terms.iter().zip(0..) {
+                t.add_segments(simd, e, z, t.rs[i]);
+            }
+            return;
+        }
         let mut k = 0;
         while k < terms.len() {
             // The consecutive terms of one entry (up to four), added chunk by chunk together.
@@ -432,4 +405,153 @@ impl PowerSums {
             scale_add(simd, &mut self.im[row], col, z.im);
         }
     }
+
+    /// Adds one term of entry `e` at a sparse grid's lags, segment by segment: the powers of a
+    /// segment are `lead (b, b^2, ..., b^8)`, `b = r^gap`, `lead` the power at the lag before
+    /// it, one vector product and sum per segment (lanes past its lags zero). The powers of
+    /// `b` stay in vectors ([`eight_powers`]), squared lane by lane where the gap is a multiple
+    /// of the previous one (once per level of a multi-tau grid); `b` and `lead` follow in
+    /// scalars (`lead b^count` the next lead), so that no segment waits on a lane of the one
+    /// before. The segment whose last power falls below [`Self::TINY`] is added lag by lag up
+    /// to there, and the rest left out.
+    #[inline(always)]
+    fn add_segments<S: pulp::Simd>(&mut self, simd: S, e: usize, z: Complex64, r: f64) {
+        if z == Complex64::ZERO {
+            return;
+        }
+        let complex = z.im != 0.0;
+        let (zr, zi) = (simd.splat_f64s(z.re), simd.splat_f64s(z.im));
+        // The base `b = r^cur` of the current gap `cur`, `b^8`, and the powers
+        // `(b, ..., b^8)`, and the powers of a segment (`pw`).
+        let (mut lead, mut b, mut cur) = (1.0, r, 1);
+        let mut b8 = whole_power(r, 8);
+        let mut qb = eight_powers(simd, r);
+        let mut pw = [0.0; 8];
+        for i in 0..self.segments.len() {
+            let seg = self.segments[i];
+            let (q, bc) = if seg.gap == 0 {
+                ([1.0; 8], 1.0)
+            } else {
+                if seg.gap != cur {
+                    if seg.gap.is_multiple_of(cur) {
+                        let k = seg.gap / cur;
+                        qb = lane_power(simd, qb, k);
+                        b = whole_power(b, k);
+                        b8 = whole_power(b8, k);
+                    } else {
+                        b = whole_power(r, seg.gap);
+                        b8 = whole_power(b, 8);
+                        qb = eight_powers(simd, b);
+                    }
+                    cur = seg.gap;
+                }
+                let bc = if seg.count == 8 {
+                    b8
+                } else {
+                    whole_power(b, seg.count)
+                };
+                (qb, bc)
+            };
+            {
+                let lv = simd.splat_f64s(lead);
+                let (pv, _) = S::as_mut_simd_f64s(&mut pw);
+                let (qv, _) = S::as_simd_f64s(&q);
+                let (mv, _) = S::as_simd_f64s(&seg.mask);
+                for ((p, q), m) in pv.iter_mut().zip(qv).zip(mv) {
+                    *p = simd.mul_f64s(simd.mul_f64s(*q, *m), lv);
+                }
+            }
+            let at = e * self.row + seg.start;
+            let last = lead * bc;
+            if last < Self::TINY {
+                for (j, &v) in pw[..seg.count].iter().enumerate() {
+                    if v < Self::TINY {
+                        return;
+                    }
+                    self.re[at + j] += z.re * v;
+                    if complex {
+                        self.im[at + j] += z.im * v;
+                    }
+                }
+                return;
+            }
+            let (pv, _) = S::as_simd_f64s(&pw);
+            let (sv, _) = S::as_mut_simd_f64s(&mut self.re[at..at + 8]);
+            for (s, p) in sv.iter_mut().zip(pv) {
+                *s = simd.add_f64s(*s, simd.mul_f64s(zr, *p));
+            }
+            if complex {
+                let (sv, _) = S::as_mut_simd_f64s(&mut self.im[at..at + 8]);
+                for (s, p) in sv.iter_mut().zip(pv) {
+                    *s = simd.add_f64s(*s, simd.mul_f64s(zi, *p));
+                }
+            }
+            lead = last;
+        }
+    }
+}
+
+/// `(b, b^2, ..., b^8)` formed in vectors (no lane written alone, so that the vectors need not
+/// wait for the lanes' stores): lane `i` is `b` times `b^(2^j)` for each bit `j` of `i`, the
+/// factors chosen by products with constant masks (`s m + (1 - m)`, exactly `s` or one).
+#[inline(always)]
+fn eight_powers<S: pulp::Simd>(simd: S, b: f64) -> [f64; 8] {
+    const BITS: [[f64; 8]; 3] = [
+        [0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0],
+        [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0],
+        [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+    ];
+    const NOT: [[f64; 8]; 3] = [
+        [1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0],
+        [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+    ];
+    let mut q = [0.0; 8];
+    let (qv, _) = S::as_mut_simd_f64s(&mut q);
+    let bv = simd.splat_f64s(b);
+    for v in qv.iter_mut() {
+        *v = bv;
+    }
+    let mut sq = bv;
+    for (bits, not) in BITS.iter().zip(&NOT) {
+        let (mv, _) = S::as_simd_f64s(bits);
+        let (nv, _) = S::as_simd_f64s(not);
+        for ((v, m), n) in qv.iter_mut().zip(mv).zip(nv) {
+            *v = simd.mul_f64s(*v, simd.add_f64s(simd.mul_f64s(sq, *m), *n));
+        }
+        sq = simd.mul_f64s(sq, sq);
+    }
+    q
+}
+
+/// `q^n` lane by lane, by squaring (as [`whole_power`]).
+#[inline(always)]
+fn lane_power<S: pulp::Simd>(simd: S, q: [f64; 8], mut n: usize) -> [f64; 8] {
+    if n == 2 {
+        // (A multi-tau grid's levels.)
+        let mut sq = q;
+        let (sv, _) = S::as_mut_simd_f64s(&mut sq);
+        for s in sv.iter_mut() {
+            *s = simd.mul_f64s(*s, *s);
+        }
+        return sq;
+    }
+    let (mut acc, mut sq) = ([1.0; 8], q);
+    while n > 0 {
+        if n & 1 == 1 {
+            let (av, _) = S::as_mut_simd_f64s(&mut acc);
+            let (sv, _) = S::as_simd_f64s(&sq);
+            for (a, s) in av.iter_mut().zip(sv) {
+                *a = simd.mul_f64s(*a, *s);
+            }
+        }
+        n >>= 1;
+        if n > 0 {
+            let (sv, _) = S::as_mut_simd_f64s(&mut sq);
+            for s in sv.iter_mut() {
+                *s = simd.mul_f64s(*s, *s);
+            }
+        }
+    }
+    acc
 }

@@ -54,16 +54,22 @@ fn powers_are_the_exponentials_to_rounding_and_stop_before_subnormals() {
 }
 
 /// Every instruction set gives bitwise the same sums: the dispatched loops against the
-/// plain (one lane) ones, on regular and gathered lags, with powers that underflow part of
-/// the way.
+/// plain (one lane) ones, on regular and gathered lags and on multi-tau grids (segments, also
+/// with lags of equal `|t|` and a gap that is not a multiple of the one before), with powers
+/// that underflow part of the way.
 #[test]
 fn every_instruction_set_gives_the_same_sums() {
+    let mut odd = multi_tau(false);
+    odd.extend([-odd[20], odd[63] + 100.0 * odd[1]]);
     for lags in [
         (1..=64).map(|m| m as f64 * 0.05).collect::<Vec<_>>(),
         (1..=100).map(|m| m as f64 * 0.05).collect(),
         vec![
             0.0, 2e-7, 5e-7, 1e-6, 2e-6, 3e-6, 4e-6, 5e-6, 6e-6, 8e-6, 1e-5,
         ],
+        multi_tau(false),
+        multi_tau(true),
+        odd,
     ] {
         let p = Powers::of(&lags).unwrap();
         let (mut fast, mut plain) = (PowerSums::new(&p, 3), PowerSums::new(&p, 3));
@@ -238,12 +244,12 @@ fn slot_sums_are_the_exponentials_to_rounding() {
 }
 
 /// Slot sums on every instruction set are bitwise the plain (one lane) loops', on regular
-/// and gathered lags.
+/// and gathered lags and on multi-tau grids (exact and rounded: the twin sums).
 #[test]
 fn slot_sums_are_the_same_on_every_instruction_set() {
     let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
     let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
-    for lags in [&regular, &gathered] {
+    for lags in [&regular, &gathered, &multi_tau(false), &multi_tau(true)] {
         let terms = slot_terms(19, 4);
         let fast = slot_sums(lags, 19, None, &terms);
         let plain = slot_sums(lags, 19, Some(pulp::Arch::Scalar), &terms);
@@ -399,4 +405,17 @@ fn multi_tau_lags_take_runs_of_their_own_steps() {
         check_power_sums(&lags, &[1e-4, 3e-3, 0.05, 0.9], eta);
         check_slot_sums(&lags, 11, eta);
     }
+}
+
+/// A multi-tau grid with a lag of equal `|t|` (a zero gap) and a last gap that is not a
+/// multiple of the one before: power sums (segments) and slot sums are still the exponentials
+/// to the rounding of powers.
+#[test]
+fn sparse_grids_with_odd_gaps_are_the_exponentials() {
+    let mut lags = multi_tau(false);
+    lags.extend([lags[20], lags[63] + 100.0 * lags[1]]);
+    let p = Powers::of(&lags).unwrap();
+    assert!(p.runs().is_some() && p.eta == 0.0);
+    check_power_sums(&lags, &[1e-4, 3e-3, 0.05, 0.9], 0.0);
+    check_slot_sums(&lags, 11, 0.0);
 }
