@@ -2,7 +2,7 @@
 //! document out. Used for temporal correlations (`speckle g1`: `|g1(t)|` of each pair) and
 //! meant for any render whose result a person reads as curves.
 
-use crate::plot::{COLOURS, PlotError, font, plot_error};
+use crate::plot::{COLOURS, PlotError, font, svg_document};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -70,18 +70,7 @@ const PLOT_WIDTH: u32 = 700;
 impl Figure {
     /// The figure as an SVG document. Non-finite points are skipped.
     pub fn svg(&self) -> Result<String, PlotError> {
-        let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
-        let mut body = String::new();
-        {
-            let root = SVGBackend::with_string(&mut body, SIZE).into_drawing_area();
-            self.draw(&root).map_err(plot_error)?;
-            root.present().map_err(plot_error)?;
-        }
-        out.push_str(&body);
-        if !out.ends_with('\n') {
-            out.push('\n');
-        }
-        Ok(out)
+        svg_document(SIZE, |root| self.draw(root))
     }
 
     /// Whether the x axis is logarithmic: [`Figure::x_log`] and the positive abscissae span

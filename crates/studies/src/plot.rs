@@ -63,11 +63,20 @@ pub(crate) fn plot_error(e: impl std::fmt::Display) -> PlotError {
 
 /// The study's figure as an SVG document.
 pub fn svg(s: &Study, m: &MemorySpectrum) -> Result<String, PlotError> {
+    svg_document(SIZE, |root| draw(root, s, m))
+}
+
+/// An SVG document of `size` pixels drawn by `draw`: the XML declaration, the drawing, a final
+/// newline (every study figure is written this way).
+pub(crate) fn svg_document<E: std::fmt::Display>(
+    size: (u32, u32),
+    draw: impl FnOnce(&Area<'_>) -> Result<(), E>,
+) -> Result<String, PlotError> {
     let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     let mut body = String::new();
     {
-        let root = SVGBackend::with_string(&mut body, SIZE).into_drawing_area();
-        draw(&root, s, m).map_err(plot_error)?;
+        let root = SVGBackend::with_string(&mut body, size).into_drawing_area();
+        draw(&root).map_err(plot_error)?;
         root.present().map_err(plot_error)?;
     }
     out.push_str(&body);
@@ -77,8 +86,9 @@ pub fn svg(s: &Study, m: &MemorySpectrum) -> Result<String, PlotError> {
     Ok(out)
 }
 
-type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
-type DrawResult = Result<(), DrawingAreaErrorKind<std::io::Error>>;
+/// The drawing area of a study figure, and what drawing on it returns.
+pub(crate) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(crate) type DrawResult = Result<(), DrawingAreaErrorKind<std::io::Error>>;
 
 fn draw(root: &Area<'_>, s: &Study, m: &MemorySpectrum) -> DrawResult {
     root.fill(&WHITE)?;

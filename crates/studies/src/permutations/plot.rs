@@ -3,7 +3,7 @@
 //! direction, with error bars of one standard error.
 
 use super::{NAMES, Permutations, PermutationsStudy};
-use crate::plot::{COLOURS, PlotError, font, plot_error, power_of_ten};
+use crate::plot::{Area, COLOURS, DrawResult, PlotError, font, power_of_ten, svg_document};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -25,22 +25,8 @@ fn log_label(v: f64) -> String {
 
 /// The study's Fig. 16 as an SVG document.
 pub fn svg(s: &PermutationsStudy, r: &Permutations) -> Result<String, PlotError> {
-    let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
-    let mut body = String::new();
-    {
-        let root = SVGBackend::with_string(&mut body, SIZE).into_drawing_area();
-        draw(&root, s, r).map_err(plot_error)?;
-        root.present().map_err(plot_error)?;
-    }
-    out.push_str(&body);
-    if !out.ends_with('\n') {
-        out.push('\n');
-    }
-    Ok(out)
+    svg_document(SIZE, |root| draw(root, s, r))
 }
-
-type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
-type DrawResult = Result<(), DrawingAreaErrorKind<std::io::Error>>;
 
 fn draw(root: &Area<'_>, s: &PermutationsStudy, r: &Permutations) -> DrawResult {
     root.fill(&WHITE)?;
