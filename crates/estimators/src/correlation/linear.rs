@@ -185,7 +185,9 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             return;
         }
         if self.plan.mode == Mode::Diagonal {
-            self.diagonal_parts(v.w_in, true);
+            // The first vertex's parts are fixed along the path: formed at its second vertex
+            // (a path reaches later vertices only through it: the live lags only shrink).
+            self.diagonal_parts(v.w_in, v.index == 2);
         } else {
             self.vertex_terms(None, v.w_in);
         }
