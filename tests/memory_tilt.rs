@@ -38,7 +38,7 @@ fn isotropic_thick_slab_follows_c1() {
     let s = load_tilt_str(STUDY, "<test>", "t", &Default::default()).unwrap();
     let m = s.render(&NoProgress).unwrap();
     let row = &m.rows[0];
-    let l_star = s.transport_mfp(0.0);
+    let l_star = s.materials[0].transport_mfp();
     let leff = s.thickness + 2.0 * 0.7104 * l_star;
     for (n, &x) in m.k_theta_l.iter().enumerate() {
         let (c, se) = (row.curve.c[n], row.curve.se[n]);

@@ -22,7 +22,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         .opts
         .start(&s.file.output.dir, &s.origin, &s.name, |t| s.estimate(t))?;
     let r = &s.file.render;
-    let total = (s.gs.len() as u64).saturating_mul(r.paths);
+    let total = (s.materials.len() as u64).saturating_mul(r.paths);
     let progress = CliProgress::new(total, "paths", &s.name, a.opts.quiet, None);
     let result = s.render(&progress);
     progress.finish();
@@ -75,7 +75,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     stage_json(&mut staged, format!("{n}.memory_tilt.json"), &sidecar)?;
     say!(
-        "{n}: memory effect of {} values of g at {} tilts from {} paths each in {:.1} s ({} \
+        "{n}: memory effect of {} rows at {} tilts from {} paths each in {:.1} s ({} \
          threads)",
         result.rows.len(),
         s.angles.len(),

@@ -47,6 +47,7 @@ mod render;
 pub(crate) mod study;
 mod tilt;
 mod tilt_fit;
+mod tilt_material;
 mod tilt_shift;
 
 pub use refocus::{
@@ -72,6 +73,7 @@ pub use tilt::{
     load_tilt_str,
 };
 pub use tilt_fit::{TiltFit, TiltFitSpec, TiltFitted};
+pub use tilt_material::{Material, MaterialG, MaterialSpec, TiltGeometry};
 pub use tilt_shift::{
     MAX_GRID, MAX_TAU, MAX_TILT_SHIFT_OPTICAL_DEPTH, TiltShift, TiltShiftFile, TiltShiftStudy,
     centroid_slope, eq50, eq50_printed, load_tilt_shift_file, load_tilt_shift_str,

@@ -118,8 +118,8 @@ pub(crate) fn slab_tracer_json(coherence: Coherence) -> Value {
 }
 
 /// The slab of a memory-effect render (`width x width x thickness`, centred at the origin),
-/// lit by plane waves tilted by `angles` and seen by far-field sensors at the same tilts,
-/// pairs `(i_n, v_n)`.
+/// lit by plane waves tilted by `angles` and seen by far-field sensors at the same tilts
+/// (`reflection`: mirrored in the slab's plane, seen from the lit side), pairs `(i_n, v_n)`.
 pub(crate) fn tilt_scene(
     width: f64,
     thickness: f64,
@@ -128,6 +128,7 @@ pub(crate) fn tilt_scene(
     phase: Phase,
     wavelength: f64,
     angles: &[f64],
+    reflection: bool,
 ) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
     // The study files name the slab by its thickness (the width follows from it) and the
     // coefficients by the mean free path; numbers are shown in exponent form (a length of
@@ -154,9 +155,16 @@ pub(crate) fn tilt_scene(
         .iter()
         .map(|&d| Source::plane_wave(d))
         .collect::<Result<_, _>>()?;
+    let mirror = |d: DVec3| {
+        if reflection {
+            d * DVec3::new(1.0, 1.0, -1.0)
+        } else {
+            d
+        }
+    };
     let sensors = dirs
         .iter()
-        .map(|&d| Sensor::far_field(d))
+        .map(|&d| Sensor::far_field(mirror(d)))
         .collect::<Result<_, _>>()?;
     let pairs = (0..dirs.len())
         .map(|n| Pair {
@@ -387,6 +395,7 @@ impl Study {
             // The wavelength in the host: k = 2 pi n_host / lambda.
             band.lambda / self.host,
             &self.angles,
+            false,
         )
     }
 

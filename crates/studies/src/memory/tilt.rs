@@ -1,15 +1,17 @@
-//! The memory effect against the tilt for a sweep of the anisotropy `g` at one wavelength and a
-//! fixed mean free path (Bar et al. 2023, Sec. 6, Fig. 6), the study of `speckle memory-tilt`,
+//! The memory effect against the tilt for a sweep of materials at one wavelength (Bar et al.
+//! 2023, Sec. 6, Fig. 6; Bar et al. 2019, Figs. 10b-e), the study of `speckle memory-tilt`,
 //! against the C1 term of Feng, Kane, Lee and Stone 1988 (the paper's ref. [5]).
 //!
-//! A lossless slab, `L` thick along z and `lateral_factor L` wide, of Henyey-Greenstein
-//! scatterers of mean cosine `g` and mean free path `l` (the same for every `g`, so the transport
-//! mean free path `l* = l / (1 - g)` varies), is lit by plane waves `i_n` tilted by `theta_n`
-//! from +z about +y and seen in transmission by far-field sensors `v_n = i_n`, the geometry of
-//! [`super::Study`] (one curve per `g` instead of per wavelength, same render, same jackknife):
-//! the normalised intensity correlation (Siegert) `C(theta_n) = |C_0n|^2 / (C_00 C_nn)` of the
-//! pairs `(i_0, v_0)` and `(i_n, v_n)`, the paper's `|C^{i, i + dtheta}_{v, v + dtheta}|^2`
-//! normalised to 1 at `dtheta = 0`.
+//! A slab, `L` thick along z and `lateral_factor L` wide, is lit by plane waves `i_n` tilted by
+//! `theta_n` from +z about +y and seen by far-field sensors: in transmission `v_n = i_n`, the
+//! geometry of [`super::Study`] (one curve per material instead of per wavelength, same render,
+//! same jackknife), in reflection `v_n` is `i_n` mirrored in the slab's plane
+//! ([`TiltGeometry`]). The normalised intensity correlation (Siegert) `C(theta_n) = |C_0n|^2 /
+//! (C_00 C_nn)` of the pairs `(i_0, v_0)` and `(i_n, v_n)` is the paper's
+//! `|C^{i, i + dtheta}_{v, v + dtheta}|^2` normalised to 1 at `dtheta = 0`. The rows are either
+//! `g = [...]` (lossless Henyey-Greenstein scatterers of one mean free path `l`, so the transport
+//! mean free path `l* = l / (1 - g)` varies) or `[[material]]` tables, each with its own mean
+//! free path, albedo and HG lobes ([`super::tilt_material`]).
 //!
 //! Theory (the C1 term in the diffusion limit, `L >> l*`): `C1(theta) = (k theta L)^2 /
 //! sinh^2(k theta L)` with `k = 2 pi / lambda` (Bar et al. 2019, Eq. 39, which quotes it from
@@ -24,6 +26,7 @@ use super::render::{Curve, MILNE_ZE, eq39, render_groups, slab_tracer_json, tilt
 use super::study::{
     StudyOutput, StudyOverrides, StudyRender, check_render, default_lateral_factor, parse, tilts,
 };
+use super::tilt_material::{Material, MaterialSpec, TiltGeometry};
 use crate::StudyError;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
@@ -38,10 +41,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-/// Most values of `g` a study may list.
+/// Most rows (values of `g` or materials) a study may list.
 pub const MAX_G: usize = 16;
 
-/// Largest extinction optical depth `L / l` rendered (the cost grows with it).
+/// Largest extinction optical depth `L / l` of a row (the cost grows with it).
 pub const MAX_TILT_OPTICAL_DEPTH: f64 = 200.0;
 
 /// A memory-tilt study file (TOML, unknown keys rejected). Lengths in micrometres.
@@ -49,10 +52,13 @@ pub const MAX_TILT_OPTICAL_DEPTH: f64 = 200.0;
 /// ```toml
 /// name = "fig6a"                  # output prefix (default: the file's stem)
 /// wavelength_um = 0.5             # wavelength in the medium
-/// mean_free_path_um = 3000.0      # l = 1 / sigma_s (lossless), the same for every g
+/// mean_free_path_um = 3000.0      # l = 1 / sigma_t, the same for every row (the default of
+///                                 # [[material]]'s)
 /// thickness_um = 30000.0          # slab thickness L
 /// lateral_factor = 100.0          # slab width / L (default 100, at least 1)
-/// g = [0.0, 0.9, 0.95]            # Henyey-Greenstein mean cosines, one curve each
+/// geometry = "transmission"       # or "reflection"
+/// g = [0.0, 0.9, 0.95]            # Henyey-Greenstein mean cosines, one curve each, lossless;
+///                                 # or [[material]] tables (super::tilt_material), not both
 /// # the tilts, exactly one of (strictly increasing from 0):
 /// #   angles_mdeg = [0.0, 0.05, ...]   (millidegrees)
 /// #   k_theta_l = [0.0, 0.5, ...]      (k theta L, k = 2 pi / wavelength_um)
@@ -75,15 +81,24 @@ pub struct TiltFile {
     pub name: Option<String>,
     /// Wavelength in the medium, micrometres.
     pub wavelength_um: f64,
-    /// Mean free path `l = 1 / sigma_s` (lossless), micrometres.
-    pub mean_free_path_um: f64,
+    /// Mean free path `l = 1 / sigma_t`, micrometres: every row's with `g`, the default of
+    /// `[[material]]`'s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_free_path_um: Option<f64>,
     /// Slab thickness `L`, micrometres.
     pub thickness_um: f64,
     /// Slab width over thickness.
     #[serde(default = "default_lateral_factor")]
     pub lateral_factor: f64,
-    /// Henyey-Greenstein mean cosines.
-    pub g: Vec<f64>,
+    /// Where the sensors are.
+    #[serde(default)]
+    pub geometry: TiltGeometry,
+    /// Henyey-Greenstein mean cosines, one lossless row each.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g: Option<Vec<f64>>,
+    /// The rows as materials (instead of `g`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<Vec<MaterialSpec>>,
     /// Tilts in millidegrees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angles_mdeg: Option<Vec<f64>>,
@@ -112,14 +127,14 @@ pub struct TiltStudy {
     pub origin: String,
     /// Wavelength, micrometres.
     pub wavelength: f64,
-    /// Mean free path, micrometres.
-    pub mean_free_path: f64,
     /// Slab thickness `L`, micrometres.
     pub thickness: f64,
     /// Slab width, micrometres.
     pub width: f64,
-    /// The mean cosines, one curve each.
-    pub gs: Vec<f64>,
+    /// Where the sensors are.
+    pub geometry: TiltGeometry,
+    /// The rows, one curve each.
+    pub materials: Vec<Material>,
     /// Tilts, radians, `theta_0 = 0`.
     pub angles: Vec<f64>,
     /// The fit of `g` to a measured curve, when the file has `[fit]`.
@@ -177,7 +192,10 @@ fn validate(
         .unwrap_or_else(|| default_name.to_string());
     speckle_scene::validate::name(&name)?;
     let wavelength = positive("wavelength_um", file.wavelength_um)?;
-    let mfp = positive("mean_free_path_um", file.mean_free_path_um)?;
+    let mfp = file
+        .mean_free_path_um
+        .map(|l| positive("mean_free_path_um", l))
+        .transpose()?;
     let thickness = positive("thickness_um", file.thickness_um)?;
     let lateral = positive("lateral_factor", file.lateral_factor)?;
     if lateral < 1.0 {
@@ -189,27 +207,22 @@ fn validate(
             ),
         ));
     }
-    let od = thickness / mfp;
-    if od > MAX_TILT_OPTICAL_DEPTH {
-        return Err(bad(
-            "thickness_um",
-            format!(
-                "gives an optical depth L / l of {od:.4e}; at most {MAX_TILT_OPTICAL_DEPTH} can \
-                 be rendered"
-            ),
-        ));
-    }
-    if file.g.is_empty() || file.g.len() > MAX_G {
-        return Err(bad(
-            "g",
-            format!("must list 1 to {MAX_G} values (got {})", file.g.len()),
-        ));
-    }
-    for (i, &g) in file.g.iter().enumerate() {
-        if !(g.is_finite() && (0.0..1.0).contains(&g)) {
+    let materials = rows(&file, mfp)?;
+    for (i, m) in materials.iter().enumerate() {
+        let od = thickness / m.mean_free_path;
+        if od > MAX_TILT_OPTICAL_DEPTH {
+            let field = match &file.material {
+                Some(list) if list[i].mean_free_path_um.is_some() => {
+                    format!("material[{i}].mean_free_path_um")
+                }
+                _ => "thickness_um".to_string(),
+            };
             return Err(bad(
-                format!("g[{i}]"),
-                format!("must be in [0, 1) (got {})", number(g)),
+                field,
+                format!(
+                    "gives an optical depth L / l of {od:.4e}; at most \
+                     {MAX_TILT_OPTICAL_DEPTH} can be rendered"
+                ),
             ));
         }
     }
@@ -221,6 +234,13 @@ fn validate(
     )?;
     check_render(&file.render)?;
     let fit = match &file.fit {
+        Some(_) if file.g.is_none() => {
+            return Err(bad(
+                "fit",
+                "fits g between the rows of a g = [...] list (one mean free path, lossless); \
+                 the study lists [[material]] tables",
+            ));
+        }
         Some(spec) => {
             // The tilts in the unit the file lists them in.
             let listed = file
@@ -228,7 +248,8 @@ fn validate(
                 .as_deref()
                 .or(file.k_theta_l.as_deref())
                 .unwrap_or_default();
-            Some(super::tilt_fit::validate(spec, &file.g, listed, files)?)
+            let gs: Vec<f64> = materials.iter().map(|m| m.mean_cosine).collect();
+            Some(super::tilt_fit::validate(spec, &gs, listed, files)?)
         }
         None => None,
     };
@@ -236,17 +257,68 @@ fn validate(
         name,
         origin: origin.to_string(),
         wavelength,
-        mean_free_path: mfp,
         thickness,
         width: lateral * thickness,
-        gs: file.g.clone(),
+        geometry: file.geometry,
+        materials,
         angles,
         fit,
         file,
     })
 }
 
+/// The rows of `file`: its `g` list (lossless, mean free path `mfp`) or its `[[material]]`s.
+fn rows(file: &TiltFile, mfp: Option<f64>) -> Result<Vec<Material>, SceneError> {
+    let count = |n: usize, field: &str| {
+        if n == 0 || n > MAX_G {
+            Err(bad(field, format!("must list 1 to {MAX_G} rows (got {n})")))
+        } else {
+            Ok(())
+        }
+    };
+    match (&file.g, &file.material) {
+        (Some(gs), None) => {
+            count(gs.len(), "g")?;
+            let l = mfp.ok_or_else(|| {
+                bad(
+                    "mean_free_path_um",
+                    "is needed with g = [...] (every row's)",
+                )
+            })?;
+            gs.iter()
+                .enumerate()
+                .map(|(i, &g)| {
+                    if g.is_finite() && (0.0..1.0).contains(&g) {
+                        Ok(Material::hg(g, l))
+                    } else {
+                        Err(bad(
+                            format!("g[{i}]"),
+                            format!("must be in [0, 1) (got {})", number(g)),
+                        ))
+                    }
+                })
+                .collect()
+        }
+        (None, Some(list)) => {
+            count(list.len(), "material")?;
+            list.iter()
+                .enumerate()
+                .map(|(i, m)| super::tilt_material::validate(i, m, mfp))
+                .collect()
+        }
+        _ => Err(bad(
+            "g | material",
+            "give exactly one: g = [...] (lossless HG rows) or [[material]] tables",
+        )),
+    }
+}
+
 impl TiltStudy {
+    /// The rows' mean cosines.
+    pub fn gs(&self) -> Vec<f64> {
+        self.materials.iter().map(|m| m.mean_cosine).collect()
+    }
+
     /// Wavenumber `k = 2 pi / lambda`, per micrometre.
     pub fn k(&self) -> f64 {
         TAU / self.wavelength
@@ -258,25 +330,22 @@ impl TiltStudy {
         self.angles.iter().map(|t| kl * t).collect()
     }
 
-    /// The transport mean free path `l / (1 - g)` of row `g`.
-    pub fn transport_mfp(&self, g: f64) -> f64 {
-        self.mean_free_path / (1.0 - g)
-    }
-
-    /// The library scene of one `g` (row `w`, naming `g[w]` in errors).
+    /// The library scene of row `w`.
     pub fn scene(&self, w: usize) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
-        let phase = Phase::hg(self.gs[w]).map_err(|e| EstimatorError::InvalidInput {
-            field: format!("g[{w}]"),
+        let m = &self.materials[w];
+        let phase = m.phase().map_err(|e| EstimatorError::InvalidInput {
+            field: format!("row {w} ({})", m.label),
             reason: e.to_string(),
         })?;
         tilt_scene(
             self.width,
             self.thickness,
-            1.0 / self.mean_free_path,
-            0.0,
+            m.sigma_s(),
+            m.sigma_a(),
             phase,
             self.wavelength,
             &self.angles,
+            self.geometry == TiltGeometry::Reflection,
         )
     }
 
@@ -285,21 +354,21 @@ impl TiltStudy {
         use speckle_scene::cost::{covariance_seconds, expected_vertices};
         let n = self.angles.len() as f64;
         let paths = self.file.render.paths as f64;
-        let t = 1.0 / self.mean_free_path;
-        let taus = [t * self.width, t * self.width, t * self.thickness];
         let seconds: f64 = self
-            .gs
+            .materials
             .iter()
-            .map(|&g| {
-                let v =
-                    expected_vertices(&taus, 1.0, g, speckle_medium::Dimension::Three, u32::MAX);
+            .map(|m| {
+                let t = 1.0 / m.mean_free_path;
+                let taus = [t * self.width, t * self.width, t * self.thickness];
+                let dim = speckle_medium::Dimension::Three;
+                let v = expected_vertices(&taus, m.albedo, m.mean_cosine, dim, u32::MAX);
                 covariance_seconds(paths, v, 2.0 * n, n)
             })
             .sum();
         let groups = self.file.render.groups as f64;
         speckle_scene::cost::Estimate {
             bytes: 16.0 * n * n * (8.0 + 4.0 * threads as f64) * groups.min(4.0)
-                + 1e6 * self.gs.len() as f64,
+                + 1e6 * self.materials.len() as f64,
             memory_field: "k_theta_l".into(),
             seconds: seconds / threads.max(1) as f64,
             time_field: "render.paths".into(),
@@ -307,17 +376,18 @@ impl TiltStudy {
         }
     }
 
-    /// Renders every `g`: `render.groups` independent covariance renders each, group `i` of
+    /// Renders every row: `render.groups` independent covariance renders each, group `i` of
     /// row `w` seeded with `derive_seed(seed, w groups + i)`; `progress` counts paths over all.
     pub fn render(&self, progress: &dyn Progress) -> Result<MemoryTilt, StudyError> {
         let start = Instant::now();
         let x = self.k_theta_l();
-        let mut rows = Vec::with_capacity(self.gs.len());
-        for (w, &g) in self.gs.iter().enumerate() {
+        let mut rows = Vec::with_capacity(self.materials.len());
+        for (w, m) in self.materials.iter().enumerate() {
             let curve = render_groups(&self.scene(w)?, &self.file.render, w, progress)?;
-            let leff = self.thickness + 2.0 * MILNE_ZE * self.transport_mfp(g);
+            let leff = self.thickness + 2.0 * MILNE_ZE * m.transport_mfp();
             rows.push(TiltRow {
-                g,
+                g: m.mean_cosine,
+                label: m.label.clone(),
                 extrapolated: x.iter().map(|&x| eq39(x * leff / self.thickness)).collect(),
                 curve,
             });
@@ -331,25 +401,28 @@ impl TiltStudy {
     }
 }
 
-/// One `g` of a [`MemoryTilt`].
+/// One row of a [`MemoryTilt`].
 #[derive(Debug, Clone)]
 pub struct TiltRow {
     /// The mean cosine.
     pub g: f64,
+    /// The legend ([`Material::label`]).
+    pub label: String,
     /// The Monte Carlo curve.
     pub curve: Curve,
-    /// C1 with `L + 2 z_e`, `z_e = 0.7104 l / (1 - g)`.
+    /// C1 with `L + 2 z_e`, `z_e = 0.7104 l*` ([`Material::transport_mfp`]).
     pub extrapolated: Vec<f64>,
 }
 
 /// The result of a memory-tilt study.
 #[derive(Debug, Clone)]
 pub struct MemoryTilt {
-    /// One row per `g`, in the study's order.
+    /// One row per material, in the study's order.
     pub rows: Vec<TiltRow>,
     /// `k theta L` of each tilt.
     pub k_theta_l: Vec<f64>,
-    /// C1, `(k theta L)^2 / sinh^2(k theta L)`, per tilt.
+    /// C1, `(k theta L)^2 / sinh^2(k theta L)`, per tilt (a transmission theory: not written
+    /// nor drawn in reflection).
     pub c1: Vec<f64>,
     /// Wall time, seconds.
     pub wall: f64,
@@ -365,7 +438,8 @@ impl MemoryTilt {
                 .flat_map(|r| f(r).iter().copied())
                 .collect()
         };
-        vec![
+        let transmission = s.geometry == TiltGeometry::Transmission;
+        let mut arrays = vec![
             super::Array {
                 key: "memory_tilt",
                 shape: vec![ng, na],
@@ -380,20 +454,6 @@ impl MemoryTilt {
                           independent renders",
             },
             super::Array {
-                key: "memory_tilt_c1",
-                shape: vec![na],
-                data: self.c1.clone(),
-                content: "(n_angles,): the C1 term in the diffusion limit, (k theta L)^2 / \
-                          sinh^2(k theta L), k = 2 pi / wavelength_um, L = thickness_um",
-            },
-            super::Array {
-                key: "memory_tilt_c1_extrapolated",
-                shape: vec![ng, na],
-                data: stack(&|r| &r.extrapolated),
-                content: "(n_g, n_angles): C1 with L replaced by L + 2 z_e, z_e = 0.7104 l / \
-                          (1 - g) (Milne)",
-            },
-            super::Array {
                 key: "memory_tilt_angles_mdeg",
                 shape: vec![na],
                 data: s.angles.iter().map(|t| t.to_degrees() * 1000.0).collect(),
@@ -403,10 +463,39 @@ impl MemoryTilt {
             super::Array {
                 key: "memory_tilt_g",
                 shape: vec![ng],
-                data: s.gs.clone(),
-                content: "(n_g,): the Henyey-Greenstein mean cosine of each row",
+                data: s.gs(),
+                content: "(n_g,): the mean cosine of each row's phase function",
             },
-        ]
+            super::Array {
+                key: "memory_tilt_mean_free_path_um",
+                shape: vec![ng],
+                data: s.materials.iter().map(|m| m.mean_free_path).collect(),
+                content: "(n_g,): each row's mean free path 1 / sigma_t, micrometres",
+            },
+            super::Array {
+                key: "memory_tilt_albedo",
+                shape: vec![ng],
+                data: s.materials.iter().map(|m| m.albedo).collect(),
+                content: "(n_g,): each row's albedo sigma_s / sigma_t",
+            },
+        ];
+        if transmission {
+            arrays.push(super::Array {
+                key: "memory_tilt_c1",
+                shape: vec![na],
+                data: self.c1.clone(),
+                content: "(n_angles,): the C1 term in the diffusion limit, (k theta L)^2 / \
+                          sinh^2(k theta L), k = 2 pi / wavelength_um, L = thickness_um",
+            });
+            arrays.push(super::Array {
+                key: "memory_tilt_c1_extrapolated",
+                shape: vec![ng, na],
+                data: stack(&|r| &r.extrapolated),
+                content: "(n_g, n_angles): C1 with L replaced by L + 2 z_e, z_e = 0.7104 l* \
+                          (Milne), l* = 1 / (sigma_s (1 - g) + sigma_a)",
+            });
+        }
+        arrays
     }
 
     /// The figure: one curve per `g` with its error bars, and C1, against the tilt in
@@ -418,27 +507,41 @@ impl MemoryTilt {
             .rows
             .iter()
             .map(|r| Line {
-                label: format!("g = {}", r.g),
+                label: r.label.clone(),
                 x: mdeg.clone(),
                 y: r.curve.c.clone(),
                 err: r.curve.se.clone(),
             })
             .collect();
-        curves.push(Line {
-            label: "C1 (diffusion)".into(),
-            x: mdeg,
-            y: self.c1.clone(),
-            err: vec![],
-        });
+        let transmission = s.geometry == TiltGeometry::Transmission;
+        if transmission {
+            curves.push(Line {
+                label: "C1 (diffusion)".into(),
+                x: mdeg,
+                y: self.c1.clone(),
+                err: vec![],
+            });
+        }
+        let mfps: Vec<f64> = s.materials.iter().map(|m| m.mean_free_path).collect();
+        let mfp = if mfps.iter().all(|&l| l == mfps[0]) {
+            format!("mean free path {} um", mfps[0])
+        } else {
+            "mean free paths in the legend".into()
+        };
         Figure {
             title: format!(
-                "{}: memory effect against the tilt (Bar et al. 2023, Fig. 6)",
-                s.name
+                "{}: memory effect against the tilt, in {}",
+                s.name,
+                if transmission {
+                    "transmission"
+                } else {
+                    "reflection"
+                }
             ),
             subtitle: format!(
-                "L = {} um, mean free path {} um, lambda = {} um; {} paths per g; error bars: \
-                 one jackknife SE",
-                s.thickness, s.mean_free_path, s.wavelength, s.file.render.paths
+                "L = {} um, {mfp}, lambda = {} um; {} paths per row; error bars: one jackknife \
+                 SE",
+                s.thickness, s.wavelength, s.file.render.paths
             ),
             x_label: "tilt d theta (millidegrees)".into(),
             x_unit: None,
@@ -451,13 +554,20 @@ impl MemoryTilt {
     /// The terminal report.
     pub fn text(&self, s: &TiltStudy) -> String {
         let mut o = String::new();
-        for r in &self.rows {
+        let dash = |x: f64| {
+            if s.geometry == TiltGeometry::Transmission {
+                format!("{x:.4}")
+            } else {
+                "-".into()
+            }
+        };
+        for (r, m) in self.rows.iter().zip(&s.materials) {
             let _ = writeln!(
                 o,
-                "{}: g = {}: transport optical depth L / l* = {:.3}; {:.1} s",
+                "{}: {}: transport optical depth L / l* = {:.3}; {:.1} s",
                 s.name,
-                r.g,
-                s.thickness / s.transport_mfp(r.g),
+                r.label,
+                s.thickness / m.transport_mfp(),
                 r.curve.wall
             );
             let _ = writeln!(
@@ -468,13 +578,13 @@ impl MemoryTilt {
             for n in 0..s.angles.len() {
                 let _ = writeln!(
                     o,
-                    "  {:>12.5}  {:>9.4}  {:>9.4} +- {:<6.4}  {:>8.4}  {:>12.4}",
+                    "  {:>12.5}  {:>9.4}  {:>9.4} +- {:<6.4}  {:>8}  {:>12}",
                     s.angles[n].to_degrees() * 1000.0,
                     self.k_theta_l[n],
                     r.curve.c[n],
                     r.curve.se[n],
-                    self.c1[n],
-                    r.extrapolated[n]
+                    dash(self.c1[n]),
+                    dash(r.extrapolated[n])
                 );
             }
         }
@@ -486,21 +596,32 @@ impl MemoryTilt {
     pub fn describe(&self, s: &TiltStudy, files: Value, threads: usize) -> Value {
         let r = &s.file.render;
         let coherence = r.coherence.coherence();
+        let transmission = s.geometry == TiltGeometry::Transmission;
         json!({
             "command": "memory-tilt",
             "study_file": s.origin,
             "study": serde_json::to_value(&s.file).unwrap_or(Value::Null),
             "geometry": {
                 "slab_um": [s.width, s.width, s.thickness],
-                "slab": "centred at the origin, thickness L along z, lossless, Henyey-Greenstein",
+                "slab": "centred at the origin, thickness L along z; per row its mean free path, \
+                         albedo and Henyey-Greenstein lobes",
                 "sources": "plane waves exp(i k i_n . x), i_n tilted from +z towards +x by theta_n",
-                "sensors": "far field in the directions v_n = i_n: transmission",
+                "sensors": if transmission {
+                    "far field in the directions v_n = i_n: transmission"
+                } else {
+                    "far field in the directions v_n = (sin theta_n, 0, -cos theta_n), i_n \
+                     mirrored in the slab's plane: reflection"
+                },
                 "pairs": "(i_n, v_n), n = 0 .. n_angles - 1",
             },
-            "theory": "C1 (Feng, Kane, Lee and Stone 1988, as Bar et al. 2019 Eq. 39 quotes it): \
-                       (k theta L)^2 / sinh^2(k theta L), valid for L >> l / (1 - g)",
+            "theory": if transmission {
+                "C1 (Feng, Kane, Lee and Stone 1988, as Bar et al. 2019 Eq. 39 quotes it): \
+                 (k theta L)^2 / sinh^2(k theta L), valid for L >> l*"
+            } else {
+                "none in reflection (C1 is a transmission result)"
+            },
             "render": {
-                "paths_per_g": r.paths,
+                "paths_per_row": r.paths,
                 "groups": r.groups,
                 "seed": r.seed,
                 "group_seeds": "group i of row w renders with derive_seed(render.seed, w groups + i)",
@@ -510,18 +631,22 @@ impl MemoryTilt {
                 "threads": threads,
                 "wall_time_s": self.wall,
             },
-            "rows": self.rows.iter().map(|row| json!({
+            "rows": self.rows.iter().zip(&s.materials).map(|(row, m)| json!({
+                "label": row.label,
                 "g": row.g,
-                "transport_mean_free_path_um": s.transport_mfp(row.g),
-                "transport_optical_depth": s.thickness / s.transport_mfp(row.g),
+                "lobes_weight_g": m.lobes,
+                "mean_free_path_um": m.mean_free_path,
+                "albedo": m.albedo,
+                "transport_mean_free_path_um": m.transport_mfp(),
+                "transport_optical_depth": s.thickness / m.transport_mfp(),
                 "correlation": row.curve.c,
                 "correlation_stderr": row.curve.se,
-                "c1_extrapolated": row.extrapolated,
+                "c1_extrapolated": if transmission { json!(row.extrapolated) } else { Value::Null },
                 "single_scattering_fraction_c00": row.curve.single_fraction,
                 "wall_time_s": row.curve.wall,
             })).collect::<Vec<_>>(),
             "k_theta_l": self.k_theta_l,
-            "c1": self.c1,
+            "c1": if transmission { json!(self.c1) } else { Value::Null },
             "files": files,
         })
     }

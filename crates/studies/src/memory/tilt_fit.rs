@@ -114,7 +114,7 @@ impl MemoryTilt {
         let pick = |curve: &[f64]| f.points.iter().map(|&i| curve[i]).collect::<Vec<_>>();
         let groups = self.rows[0].curve.left_out.len();
         let family = Family {
-            grid: s.gs.clone(),
+            grid: s.gs(),
             values: self.rows.iter().map(|r| pick(&r.curve.c)).collect(),
             left_out: (0..groups)
                 .map(|g| {
@@ -130,7 +130,8 @@ impl MemoryTilt {
             stderr: f.measurement.stderr.clone(),
         };
         Some(fit_family(&family, &data, f.level, "g").map(|g| {
-            let l = s.mean_free_path;
+            // A fit needs the g = [...] form: every row has the same mean free path.
+            let l = s.materials[0].mean_free_path;
             let star = |g: f64| l / (1.0 - g);
             let transport = (
                 star(g.estimate),
