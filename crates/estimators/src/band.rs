@@ -11,6 +11,12 @@
 //! batches as [`crate::render_covariance`]; each kept entry equals the dense render's to
 //! rounding (the dense one sums through rank-`K` blocks).
 //!
+//! A band splits into **tiles** of whole image rows ([`ImageBand::new_tile`], `speckle covariance
+//! --band R --tile I/N`): a tile keeps the entries `(p, q)` whose pixel `p` lies in its rows. Every
+//! kept entry is summed on its own (a general-diagonal batch sum, element by element, and batch
+//! means element by element), from pair values that do not depend on which entries are kept, so
+//! a tile's entries are bitwise the whole band's (`tiles_are_bitwise_the_whole_band`).
+//!
 //! What is dropped is reported, not hidden: [`BandEstimate::edge_correlation`] is the largest
 //! normalised magnitude `|C| / sqrt(I I)` on the band's outermost ring (offset `radius` along
 //! one axis), the level the correlation has fallen to where the band stops.
@@ -22,6 +28,7 @@ use speckle_medium::Medium;
 use speckle_paths::NoFactor;
 use speckle_phase::PhaseFunction;
 use speckle_stats::Progress;
+use std::ops::Range;
 
 /// At most this many kept entries (`2^25`: about 3 GB of sums and moments while rendering).
 pub const MAX_BAND_ENTRIES: usize = 1 << 25;
@@ -47,6 +54,9 @@ pub struct ImageBand {
     nx: usize,
     ny: usize,
     radius: usize,
+    /// The image rows `y0..y1` whose pixels `p` are kept (`0..ny` for the whole band).
+    y0: usize,
+    y1: usize,
 }
 
 impl ImageBand {
@@ -58,6 +68,21 @@ impl ImageBand {
         nx: usize,
         ny: usize,
         radius: usize,
+    ) -> Result<Self, EstimatorError> {
+        Self::new_tile(sources, nx, ny, radius, 0..ny)
+    }
+
+    /// The tile of the band of [`ImageBand::new`] that keeps the entries of the pixels in image
+    /// rows `rows` (with every partner `q` within the radius, in any row): its arrays have
+    /// the shape `(S, rows.len(), nx, S, 2r + 1, 2r + 1)`, rows `rows` of the whole band's.
+    /// Errors as [`ImageBand::new`] ([`MAX_BAND_ENTRIES`] counts the tile's entries), and
+    /// naming `tile` for rows empty or outside `0..ny`.
+    pub fn new_tile(
+        sources: usize,
+        nx: usize,
+        ny: usize,
+        radius: usize,
+        rows: Range<usize>,
     ) -> Result<Self, EstimatorError> {
         let invalid = |field: &str, reason: String| EstimatorError::InvalidInput {
             field: field.into(),
@@ -78,8 +103,14 @@ impl ImageBand {
                 ),
             ));
         }
+        if rows.is_empty() || rows.end > ny {
+            return Err(invalid(
+                "tile",
+                format!("rows {rows:?} are not a tile of an image of {ny} rows"),
+            ));
+        }
         let w = 2 * radius + 1;
-        let len = [sources, nx, ny, sources, w, w]
+        let len = [sources, nx, rows.len(), sources, w, w]
             .iter()
             .try_fold(1usize, |a, &b| a.checked_mul(b));
         match len {
@@ -88,12 +119,20 @@ impl ImageBand {
                 nx,
                 ny,
                 radius,
+                y0: rows.start,
+                y1: rows.end,
             }),
             _ => Err(invalid(
                 "band",
                 format!(
-                    "{sources}^2 sources x {nx} x {ny} pixels x {w} x {w} offsets exceed \
-                     {MAX_BAND_ENTRIES} entries: a smaller radius or image"
+                    "{sources}^2 sources x {nx} x {} pixels x {w} x {w} offsets exceed \
+                     {MAX_BAND_ENTRIES} entries: a smaller radius or image{}",
+                    rows.len(),
+                    if rows.len() == ny {
+                        ", or tiles (--tile)"
+                    } else {
+                        ", or more tiles"
+                    }
                 ),
             )),
         }
@@ -107,6 +146,17 @@ impl ImageBand {
         nx: usize,
         ny: usize,
         radius: usize,
+    ) -> Result<Self, EstimatorError> {
+        Self::of_tile(scene, nx, ny, radius, 0..ny)
+    }
+
+    /// The tile of rows `rows` ([`ImageBand::new_tile`]) of the band of [`ImageBand::of`].
+    pub fn of_tile<M: Medium, P: PhaseFunction>(
+        scene: &Scene<M, P>,
+        nx: usize,
+        ny: usize,
+        radius: usize,
+        rows: Range<usize>,
     ) -> Result<Self, EstimatorError> {
         let (s, v) = (scene.sources().len(), scene.sensors().len());
         if nx.checked_mul(ny) != Some(v) {
@@ -122,13 +172,31 @@ impl ImageBand {
                     .into(),
             });
         }
-        Self::new(s, nx, ny, radius)
+        Self::new_tile(s, nx, ny, radius, rows)
     }
 
-    /// `(S, ny, nx, S, 2r + 1, 2r + 1)`.
+    /// `(S, rows, nx, S, 2r + 1, 2r + 1)`: `rows = ny` for the whole band, the tile's rows for
+    /// a tile.
     pub fn shape(&self) -> [usize; 6] {
         let w = 2 * self.radius + 1;
+        [self.sources, self.y1 - self.y0, self.nx, self.sources, w, w]
+    }
+
+    /// The whole band's shape `(S, ny, nx, S, 2r + 1, 2r + 1)` (of a tile: the band it is a
+    /// tile of).
+    pub fn whole_shape(&self) -> [usize; 6] {
+        let w = 2 * self.radius + 1;
         [self.sources, self.ny, self.nx, self.sources, w, w]
+    }
+
+    /// The image rows whose pixels' entries are kept (`0..ny` for the whole band).
+    pub fn rows(&self) -> Range<usize> {
+        self.y0..self.y1
+    }
+
+    /// Whether the band keeps every row (not a proper tile).
+    pub fn is_whole(&self) -> bool {
+        self.y0 == 0 && self.y1 == self.ny
     }
 
     /// The number of array elements (kept entries and NaN offsets outside the image).
@@ -153,7 +221,7 @@ impl ImageBand {
         let (nx, ny, v) = (self.nx as isize, self.ny as isize, self.nx * self.ny);
         let mut element = 0;
         for s1 in 0..self.sources {
-            for y in 0..ny {
+            for y in self.y0 as isize..self.y1 as isize {
                 for x in 0..nx {
                     let p = s1 * v + (y * nx + x) as usize;
                     for s2 in 0..self.sources {
@@ -205,68 +273,116 @@ pub struct BandEstimate {
 }
 
 impl BandEstimate {
-    /// Calls `f(s1, s2, dy, dx, rho)` with `rho = |C| / sqrt(I I)` for every element inside the
-    /// image whose `rho` is finite (`dy`, `dx` the array's offset indices, `0..2r + 1`).
-    fn each_correlation(&self, mut f: impl FnMut(usize, usize, usize, usize, f64)) {
+    /// The correlation summaries of a whole band (`None` for a proper tile, which lacks the
+    /// intensities of the rows beyond it).
+    pub fn correlation(&self) -> Option<BandCorrelation> {
+        if !self.band.is_whole() {
+            return None;
+        }
         let [s, ny, nx, _, w, _] = self.band.shape();
         let r = self.band.radius;
-        let at = |s1: usize, y: usize, x: usize, s2: usize, dy: usize, dx: usize| {
-            self.value[((((s1 * ny + y) * nx + x) * s + s2) * w + dy) * w + dx]
-        };
-        for s1 in 0..s {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let i1 = at(s1, y, x, s1, r, r).re;
-                    for s2 in 0..s {
-                        for dy in 0..w {
-                            for dx in 0..w {
-                                let c = at(s1, y, x, s2, dy, dx);
-                                if c.re.is_nan() {
-                                    continue;
-                                }
-                                let i2 = at(s2, y + dy - r, x + dx - r, s2, r, r).re;
-                                let rho = c.norm() / (i1 * i2).sqrt();
-                                if rho.is_finite() {
-                                    f(s1, s2, dy, dx, rho);
-                                }
-                            }
-                        }
+        let pixel = s * w * w;
+        let centre = |s1: usize| s1 * w * w + r * w + r;
+        let intensity = (0..s * ny * nx)
+            .map(|k| self.value[k * pixel + centre(k / (ny * nx))].re)
+            .collect();
+        let mut c = BandCorrelation::new(&self.band, intensity);
+        for (k, values) in self.value.chunks_exact(pixel).enumerate() {
+            c.add_pixel(k / (ny * nx), (k / nx) % ny, k % nx, values);
+        }
+        Some(c)
+    }
+
+    /// The largest `|C[p, q]| / sqrt(C[p, p] C[q, q])` over the band's outermost ring (an
+    /// offset of exactly `radius` pixels along one axis, at most along the other): where the
+    /// correlation has fallen to when the band stops. `0` for a radius of 0; NaN for a tile
+    /// ([`BandCorrelation`] of the merged tiles).
+    pub fn edge_correlation(&self) -> f64 {
+        self.correlation()
+            .map_or(f64::NAN, |c| c.edge_correlation())
+    }
+
+    /// The mean correlation `|C| / sqrt(I I)` at each offset `(dy, dx)` (row-major,
+    /// `(2r + 1)^2` values), over the pixels and sources whose offset stays in the image
+    /// (`s2 = s1`): the shape of the speckle grain, which the band cuts at `radius`. Empty for
+    /// a tile.
+    pub fn mean_correlation(&self) -> Vec<f64> {
+        self.correlation()
+            .map_or_else(Vec::new, |c| c.mean_correlation())
+    }
+}
+
+/// The summaries of a whole band's correlation `rho = |C| / sqrt(I I)` (edge correlation, mean
+/// by offset), accumulated pixel by pixel in array order from the image's intensities: a whole
+/// render and a merge of tiles that streams them pixel by pixel get bitwise the same.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BandCorrelation {
+    band: ImageBand,
+    /// `C[p, p]` of every pixel `p = (s, y, x)`, row-major.
+    intensity: Vec<f64>,
+    edge: f64,
+    sum: Vec<f64>,
+    count: Vec<usize>,
+}
+
+impl BandCorrelation {
+    /// Nothing accumulated yet, for the whole band of `band` (which may be a tile of it) and
+    /// the intensities `C[p, p]` of its `S ny nx` pixels (the real parts of the elements
+    /// `[s, y, x, s, r, r]`).
+    pub fn new(band: &ImageBand, intensity: Vec<f64>) -> Self {
+        let w = 2 * band.radius + 1;
+        assert_eq!(intensity.len(), band.sources * band.ny * band.nx);
+        Self {
+            band: *band,
+            intensity,
+            edge: 0.0,
+            sum: vec![0.0; w * w],
+            count: vec![0; w * w],
+        }
+    }
+
+    /// Adds pixel `(s1, y, x)`'s elements `values` (`S (2r + 1)^2`, `[s2, dy, dx]`); pixels must
+    /// come in array order (`s1`, then `y`, then `x`) for bitwise reproducible means.
+    pub fn add_pixel(&mut self, s1: usize, y: usize, x: usize, values: &[Complex64]) {
+        let b = &self.band;
+        let (r, w, nx, ny) = (b.radius, 2 * b.radius + 1, b.nx, b.ny);
+        let last = 2 * r;
+        let at = |s: usize, y: usize, x: usize| self.intensity[(s * ny + y) * nx + x];
+        let i1 = at(s1, y, x);
+        for s2 in 0..b.sources {
+            for dy in 0..w {
+                for dx in 0..w {
+                    let c = values[(s2 * w + dy) * w + dx];
+                    if c.re.is_nan() {
+                        continue;
+                    }
+                    let i2 = at(s2, y + dy - r, x + dx - r);
+                    let rho = c.norm() / (i1 * i2).sqrt();
+                    if !rho.is_finite() {
+                        continue;
+                    }
+                    if last > 0 && (dy == 0 || dx == 0 || dy == last || dx == last) {
+                        self.edge = self.edge.max(rho);
+                    }
+                    if s1 == s2 {
+                        self.sum[dy * w + dx] += rho;
+                        self.count[dy * w + dx] += 1;
                     }
                 }
             }
         }
     }
 
-    /// The largest `|C[p, q]| / sqrt(C[p, p] C[q, q])` over the band's outermost ring (an
-    /// offset of exactly `radius` pixels along one axis, at most along the other): where the
-    /// correlation has fallen to when the band stops. `0` for a radius of 0.
+    /// See [`BandEstimate::edge_correlation`].
     pub fn edge_correlation(&self) -> f64 {
-        let last = 2 * self.band.radius;
-        let mut max: f64 = 0.0;
-        if last > 0 {
-            self.each_correlation(|_, _, dy, dx, rho| {
-                if dy == 0 || dx == 0 || dy == last || dx == last {
-                    max = max.max(rho);
-                }
-            });
-        }
-        max
+        self.edge
     }
 
-    /// The mean correlation `|C| / sqrt(I I)` at each offset `(dy, dx)` (row-major,
-    /// `(2r + 1)^2` values), over the pixels and sources whose offset stays in the image
-    /// (`s2 = s1`): the shape of the speckle grain, which the band cuts at `radius`.
+    /// See [`BandEstimate::mean_correlation`].
     pub fn mean_correlation(&self) -> Vec<f64> {
-        let w = 2 * self.band.radius + 1;
-        let (mut sum, mut count) = (vec![0.0; w * w], vec![0usize; w * w]);
-        self.each_correlation(|s1, s2, dy, dx, rho| {
-            if s1 == s2 {
-                sum[dy * w + dx] += rho;
-                count[dy * w + dx] += 1;
-            }
-        });
-        sum.iter()
-            .zip(&count)
+        self.sum
+            .iter()
+            .zip(&self.count)
             .map(|(&a, &n)| if n > 0 { a / n as f64 } else { f64::NAN })
             .collect()
     }
@@ -304,4 +420,87 @@ pub fn render_covariance_band<M: Medium, P: PhaseFunction>(
         std_error: band.scatter(column(&est.total.std_error).into_iter()),
         paths: est.paths,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{NoProgress, Pair, Sensor, Source};
+    use glam::DVec3;
+    use speckle_medium::{Aabb, HomogeneousBox};
+    use speckle_phase::Phase;
+
+    /// A slab lit by two plane waves, a 5 x 4 far-field image (`J = 40`).
+    fn scene() -> Scene<HomogeneousBox, Phase> {
+        let b = Aabb::centered(DVec3::ZERO, DVec3::new(10.0, 10.0, 2.0)).unwrap();
+        let m = HomogeneousBox::from_mean_free_path(b, 3.0, 1.0).unwrap();
+        let step = 2f64.to_radians();
+        let (nx, ny) = (5, 4);
+        let sensors = (0..nx * ny)
+            .map(|i| {
+                let (y, x) = ((i / nx) as f64 - 1.5, (i % nx) as f64 - 2.0);
+                Sensor::far_field(DVec3::new((x * step).tan(), (y * step).tan(), 1.0)).unwrap()
+            })
+            .collect();
+        let sources = vec![
+            Source::plane_wave(DVec3::Z).unwrap(),
+            Source::plane_wave(DVec3::new(0.05, 0.0, 1.0)).unwrap(),
+        ];
+        Scene::new(
+            m,
+            Phase::hg(0.5).unwrap(),
+            1.0,
+            sources,
+            sensors,
+            Pair::all(2, nx * ny),
+        )
+        .unwrap()
+    }
+
+    /// Every tile's elements (values and standard errors, NaN offsets included) are bitwise
+    /// the whole band's in the tile's rows, for any split of the rows, with two sources (the
+    /// tiles interleave per `s1`); the correlation summaries of the whole band are those of
+    /// its pixels streamed in order.
+    #[test]
+    fn tiles_are_bitwise_the_whole_band() {
+        let s = scene();
+        let opts = CovarianceOptions {
+            paths: 600,
+            seed: 7,
+            ..Default::default()
+        };
+        let whole = ImageBand::of(&s, 5, 4, 1).unwrap();
+        let w = render_covariance_band(&s, &opts, &whole, &NoProgress).unwrap();
+        let bits = |v: &[Complex64]| -> Vec<(u64, u64)> {
+            v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+        };
+        let [ns, ny, nx, _, k, _] = whole.shape();
+        let pixel = ns * k * k;
+        for splits in [&[0, 1, 4][..], &[0, 2, 3, 4], &[0, 1, 2, 3, 4]] {
+            for t in splits.windows(2) {
+                let tile = ImageBand::of_tile(&s, 5, 4, 1, t[0]..t[1]).unwrap();
+                assert_eq!(tile.shape(), [ns, t[1] - t[0], nx, ns, k, k]);
+                let e = render_covariance_band(&s, &opts, &tile, &NoProgress).unwrap();
+                assert_eq!(e.paths, w.paths);
+                assert!(e.edge_correlation().is_nan() && e.mean_correlation().is_empty());
+                for s1 in 0..ns {
+                    let rows = |v: &[Complex64], y0: usize, y1: usize, n: usize| {
+                        bits(&v[(s1 * n + y0) * nx * pixel..(s1 * n + y1) * nx * pixel])
+                    };
+                    let n = t[1] - t[0];
+                    assert_eq!(rows(&e.value, 0, n, n), rows(&w.value, t[0], t[1], ny));
+                    assert_eq!(
+                        rows(&e.std_error, 0, n, n),
+                        rows(&w.std_error, t[0], t[1], ny)
+                    );
+                }
+            }
+        }
+        assert!(w.edge_correlation() > 0.0);
+        assert_eq!(w.mean_correlation().len(), k * k);
+        let e = ImageBand::of_tile(&s, 5, 4, 1, 2..5)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tile"), "{e}");
+    }
 }

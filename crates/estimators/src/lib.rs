@@ -56,7 +56,9 @@ mod lag_powers;
 mod plan;
 mod records;
 
-pub use band::{BandEstimate, ImageBand, MAX_BAND_ENTRIES, render_covariance_band};
+pub use band::{
+    BandCorrelation, BandEstimate, ImageBand, MAX_BAND_ENTRIES, render_covariance_band,
+};
 pub use connect::NEAR_FIELD_KEY;
 pub use correlation::{
     CorrelationEstimate, Entries, MAX_STORED_ENTRIES, MotionFactor, render_correlation,

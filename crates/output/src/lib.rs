@@ -53,12 +53,16 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod stream;
+
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
+use stream::Content;
+pub use stream::Writer;
 
 /// Longest file name (bytes) on common file systems (`NAME_MAX`).
 pub const MAX_NAME_BYTES: usize = 255;
@@ -534,6 +538,18 @@ impl Staging {
         Ok(())
     }
 
+    /// Writes what `write` writes to `path` through a buffer of [`WRITE_CHUNK`], synced.
+    fn write_with(path: &Path, write: &mut Writer) -> Result<(), OutputError> {
+        let f = fs::File::create_new(path).map_err(io_error(path))?;
+        let mut out = std::io::BufWriter::with_capacity(WRITE_CHUNK, f);
+        write(&mut out)
+            .and_then(|()| out.into_inner().map_err(|e| e.into_error()))
+            .and_then(|f| f.sync_all())
+            .map_err(io_error(path))?;
+        step();
+        Ok(())
+    }
+
     /// Rolls back now (while the caller holds the rename lock) and marks it done.
     /// (A roll-back that fails leaves the folder, marker and all, for the next
     /// [`recover`] once this process has ended.)
@@ -568,7 +584,7 @@ impl Drop for Staging {
 #[derive(Debug, Default)]
 pub struct Staged {
     dir: PathBuf,
-    files: Vec<(String, Vec<u8>)>,
+    files: Vec<(String, Content)>,
     /// Testing aid: fail (or, with `kill`, stop as if killed) after this many renames.
     fail_after: Option<(usize, bool)>,
 }
@@ -598,7 +614,15 @@ impl Staged {
 
     /// Stages `name` (a plain file name, checked by [`Staged::commit`]) with `bytes`.
     pub fn add(&mut self, name: String, bytes: Vec<u8>) {
-        self.files.push((name, bytes));
+        self.files.push((name, Content::Bytes(bytes)));
+    }
+
+    /// Stages `name` with the bytes that `write` writes when the commit writes its files:
+    /// for files too large to hold in memory (a merge streaming its inputs into one output).
+    /// An error of `write` fails the commit, which then leaves the previous files and no
+    /// temporary, as any other error.
+    pub fn add_stream(&mut self, name: String, write: Writer) {
+        self.files.push((name, Content::Stream(write)));
     }
 
     /// The names staged so far.
@@ -609,7 +633,7 @@ impl Staged {
     /// Writes every staged file, all or none (see the crate documentation), unless
     /// `cancelled()` says so before the renames begin; returns the paths written. On any error
     /// or cancellation the previous files are in place and no temporary is left.
-    pub fn commit(self, cancelled: impl Fn() -> bool) -> Result<Vec<PathBuf>, OutputError> {
+    pub fn commit(mut self, cancelled: impl Fn() -> bool) -> Result<Vec<PathBuf>, OutputError> {
         if cancelled() {
             return Err(OutputError::Cancelled);
         }
@@ -630,7 +654,7 @@ impl Staged {
         result
     }
 
-    fn commit_in(&self, cancelled: &dyn Fn() -> bool) -> Result<Vec<PathBuf>, OutputError> {
+    fn commit_in(&mut self, cancelled: &dyn Fn() -> bool) -> Result<Vec<PathBuf>, OutputError> {
         let dir = &self.dir;
         recover(dir)?;
         let targets: Vec<PathBuf> = self.files.iter().map(|(n, _)| dir.join(n)).collect();
@@ -643,8 +667,11 @@ impl Staged {
             }
         }
         let mut staging = Staging::create(dir)?;
-        for (i, (_, bytes)) in self.files.iter().enumerate() {
-            Staging::write(&staging.file("new", i), bytes)?;
+        for (i, (_, content)) in self.files.iter_mut().enumerate() {
+            match content {
+                Content::Bytes(bytes) => Staging::write(&staging.file("new", i), bytes)?,
+                Content::Stream(write) => Staging::write_with(&staging.file("new", i), write)?,
+            }
         }
         let manifest: String = self.files.iter().map(|(n, _)| format!("{n}\n")).collect();
         Staging::write(&staging.path.join("manifest"), manifest.as_bytes())?;

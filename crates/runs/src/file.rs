@@ -134,19 +134,7 @@ impl ShardFile {
             ShardData::Fields(f) => (f.rows.shard, f.rows.units.clone(), f.rows.total),
             ShardData::Wave(w) => (w.rows.shard, w.rows.units.clone(), w.rows.total),
         };
-        let scene_toml = toml::to_string(&p.file).map_err(|e| {
-            bad(
-                Path::new(&p.origin),
-                format!("the scene cannot be written as TOML: {e}"),
-            )
-        })?;
-        // A scene given by a bare file name has the empty folder: the current one.
-        let base = if p.base.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            &p.base
-        };
-        let base = std::path::absolute(base).unwrap_or_else(|_| base.to_path_buf());
+        let (scene_toml, base) = scene_source(p)?;
         Ok(Self {
             header: Header {
                 kind,
@@ -280,6 +268,25 @@ impl ShardFile {
             }
         }
     }
+}
+
+/// The scene of `p` as TOML and the absolute folder its input files are looked up in: what a
+/// shard or tile file keeps to rebuild the problem.
+pub(crate) fn scene_source(p: &Problem) -> Result<(String, PathBuf), RunError> {
+    let scene_toml = toml::to_string(&p.file).map_err(|e| {
+        bad(
+            Path::new(&p.origin),
+            format!("the scene cannot be written as TOML: {e}"),
+        )
+    })?;
+    // A scene given by a bare file name has the empty folder: the current one.
+    let base = if p.base.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        &p.base
+    };
+    let base = std::path::absolute(base).unwrap_or_else(|_| base.to_path_buf());
+    Ok((scene_toml, base))
 }
 
 /// The header's description of batch sums.

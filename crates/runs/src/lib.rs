@@ -34,6 +34,7 @@ mod merge;
 pub mod plan;
 mod read;
 pub mod temporal;
+mod tile;
 
 pub use band::{BandChoice, band_radius};
 pub use file::{Header, ShardData, ShardFile};
@@ -42,6 +43,10 @@ pub use merge::{Merged, merge, merge_files};
 pub use plan::{Plan, plan};
 pub use read::MAX_HEADER_BYTES;
 pub use temporal::{Temporal, temporal};
+pub use tile::{
+    BandArray, BandTiles, TILE_MAGIC, TileHeader, is_tile_file, merge_tiles, read_tile_header,
+    tile_bytes, tile_file_name, tile_rows,
+};
 
 use num_complex::Complex64;
 use speckle_estimators::{

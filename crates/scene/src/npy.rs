@@ -64,6 +64,12 @@ pub fn encode_i8(shape: &[usize], data: &[i64]) -> Vec<u8> {
     out
 }
 
+/// The magic string and header of a C-order complex128 array of the given shape: what
+/// [`encode_c16`] writes before the data (for a file written in pieces, by a streaming merge).
+pub fn c16_header(shape: &[usize]) -> Vec<u8> {
+    header_with("<c16", shape, 0)
+}
+
 /// The magic string and header of an array of `len` elements of `item` bytes with dtype
 /// `descr`, with room reserved for the data.
 fn header(descr: &str, shape: &[usize], len: usize, item: usize) -> Vec<u8> {
@@ -72,6 +78,12 @@ fn header(descr: &str, shape: &[usize], len: usize, item: usize) -> Vec<u8> {
         len,
         "npy: shape {shape:?} does not match {len} elements"
     );
+    header_with(descr, shape, item * len)
+}
+
+/// The magic string and header of an array of `shape` with dtype `descr`, with room for
+/// `reserve` more bytes.
+fn header_with(descr: &str, shape: &[usize], reserve: usize) -> Vec<u8> {
     let mut dict = format!(
         "{{'descr': '{descr}', 'fortran_order': False, 'shape': {}, }}",
         shape_tuple(shape)
@@ -81,7 +93,7 @@ fn header(descr: &str, shape: &[usize], len: usize, item: usize) -> Vec<u8> {
     dict.push_str(&" ".repeat(unpadded.next_multiple_of(ALIGN) - unpadded));
     dict.push('\n');
     let header_len = u16::try_from(dict.len()).expect("npy header fits in 64 KiB");
-    let mut out = Vec::with_capacity(MAGIC.len() + 2 + dict.len() + item * len);
+    let mut out = Vec::with_capacity(MAGIC.len() + 2 + dict.len() + reserve);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&header_len.to_le_bytes());
     out.extend_from_slice(dict.as_bytes());

@@ -1,7 +1,10 @@
 //! `speckle covariance`: the covariance of all pairs (Alg. 1) and the speckle mean.
 
+mod band;
+
 use super::*;
 use crate::error;
+pub use band::write_merged_band;
 use speckle::estimators::{CovarianceEstimate, render_covariance};
 use speckle::runs::{Means, RunError};
 use speckle::scene::npy::encode_c16;
@@ -30,6 +33,11 @@ pub struct Args {
     /// With `--band auto`: the correlation `|C| / C(0)` below which pixel offsets are dropped.
     #[arg(long, value_name = "EPS", default_value_t = 0.01, requires = "band")]
     pub epsilon: f64,
+    /// With `--band R`: render only tile I of N (from 0, as `--shard`) of the band, the band
+    /// entries of the pixels in the I-th of N contiguous blocks of image rows, into
+    /// `<name>.cov_band.I-of-N.tile`, for `speckle merge`. Every tile renders all the paths.
+    #[arg(long, value_name = "I/N", requires = "band")]
+    pub tile: Option<Shard>,
 }
 
 /// The half-width of `--band`: pixels, or chosen by a pilot.
@@ -71,7 +79,16 @@ pub use speckle::runs::covariance_options as options;
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
     match a.band {
-        Some(BandRadius::Pixels(r)) => render_band(&p, run, r, None),
+        Some(BandRadius::Pixels(r)) => band::render_band(&p, run, r, None, a.tile),
+        Some(BandRadius::Auto) if a.tile.is_some() => Err(p
+            .in_document(speckle::scene::SceneError::InvalidInput {
+                field: "tile".into(),
+                reason: "--tile needs the radius given (--band R), the same for every tile: \
+                         run `--band auto` once without --tile and pass the radius it prints \
+                         to every tile"
+                    .into(),
+            })
+            .into()),
         Some(BandRadius::Auto) => {
             let progress = speckle::estimators::NoProgress;
             let c =
@@ -97,86 +114,10 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 }
             );
             let r = c.radius;
-            render_band(&p, run, r, Some(c))
+            band::render_band(&p, run, r, Some(c), None)
         }
         None => render(&p, run),
     }
-}
-
-/// Renders and writes the band of half-width `radius` pixels of the covariance of `p`, whose
-/// sensors must form one image ([`speckle::estimators::render_covariance_band`]).
-fn render_band(
-    p: &Problem,
-    run: RunOptions,
-    radius: usize,
-    auto: Option<speckle::runs::BandChoice>,
-) -> anyhow::Result<()> {
-    use speckle::estimators::{ImageBand, render_covariance_band};
-    run.whole_only(p, "covariance --band")?;
-    let grid = p.grid.as_ref().ok_or_else(|| {
-        error::estimator(speckle::estimators::EstimatorError::InvalidInput {
-            field: "sensors".into(),
-            reason: "--band needs sensors that form one image (a far_grid, point_grid or \
-                     gaussian_grid)"
-                .into(),
-        })
-    })?;
-    let band = ImageBand::of(&p.scene, grid.nx, grid.ny, radius).map_err(error::estimator)?;
-    let kept = band.entries().len();
-    let mut staged = plan(p, p.band_estimate(kept, threads()), run)?;
-    let opts = options(p);
-    let (est, wall) = run.timed(p, opts.paths, "paths", error::estimator, |pr| {
-        render_covariance_band(&p.scene, &opts, &band, pr)
-    })?;
-    let n = &p.name;
-    let shape = band.shape();
-    let mut files = json!({
-        "layout": "cov_band: complex128 (S, ny, nx, S, 2R + 1, 2R + 1), element [s1, y, x, s2, \
-                   dy + R, dx + R] = C[(s1, pixel (y, x)), (s2, pixel (y + dy, x + dx))], NaN \
-                   where the offset leaves the image; entries beyond R pixels are not rendered; \
-                   cov_band_stderr: re = standard error of Re C, im = of Im C",
-    });
-    let arrays = [
-        ("cov_band", encode_c16(&shape, &est.value)),
-        ("cov_band_stderr", encode_c16(&shape, &est.std_error)),
-    ];
-    stage_arrays(&mut staged, &mut files, n, arrays);
-    let edge = est.edge_correlation();
-    let mut summary = json!({
-        "radius": radius,
-        "shape": shape,
-        "kept_entries": kept,
-        "edge_correlation": edge,
-        "mean_correlation_by_offset": est.mean_correlation(),
-    });
-    if let Some(c) = &auto {
-        summary["auto"] = json!({
-            "epsilon": c.epsilon,
-            "pilot_pair": c.pair,
-            "pilot_paths": c.paths,
-            "pilot_correlation_x": c.curves[0],
-            "pilot_correlation_y": c.curves[1],
-            "whole_image": c.whole_image,
-            "method": "the pilot's |C(s)| / C(0) of the central pixel under sensor tilts of \
-                       1, 2, ... pixels along each axis; the radius is the largest offset \
-                       where it reaches epsilon",
-        });
-    }
-    let render = p.render.paths_json(threads(), wall);
-    let meta = p.sidecar("covariance_band", render, files, summary);
-    stage_sidecar(&mut staged, p, "cov_band", &meta)?;
-    say!(
-        "{n}: covariance band of radius {radius} px over {} x {} pixels ({} kept entries of J^2 = \
-         {:.3e}) from {} paths in {wall:.2} s ({} threads); largest correlation on the band's \
-         edge {edge:.3}",
-        grid.nx,
-        grid.ny,
-        kept,
-        (p.pairs() as f64).powi(2),
-        est.paths,
-        threads()
-    );
-    finish(staged)
 }
 
 /// Renders and writes the covariance of `p`.
