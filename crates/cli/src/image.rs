@@ -56,6 +56,51 @@ impl Gray {
         }
     }
 
+    /// A `width x height` image of one gray level.
+    pub fn filled(width: usize, height: usize, gray: u8) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![gray; width * height],
+        }
+    }
+
+    /// Copies `other` into this image with its top-left corner at `(x, y)`, clipped.
+    pub fn blit(&mut self, other: &Gray, x: usize, y: usize) {
+        for r in 0..other.height.min(self.height.saturating_sub(y)) {
+            let w = other.width.min(self.width.saturating_sub(x));
+            let to = (y + r) * self.width + x;
+            self.pixels[to..to + w]
+                .copy_from_slice(&other.pixels[r * other.width..r * other.width + w]);
+        }
+    }
+
+    /// Writes `text` in gray level `gray` with its top-left corner at `(x, y)`, clipped: a
+    /// 5 x 7 pixel font, each font pixel `scale x scale`, [`GLYPH_ADVANCE`] font pixels per
+    /// character. It knows the digits, `. = + - ± Δ g` and the space; other characters are
+    /// left blank.
+    pub fn text(&mut self, x: usize, y: usize, text: &str, scale: usize, gray: u8) {
+        for (i, ch) in text.chars().enumerate() {
+            let rows = glyph(ch);
+            let left = x + i * GLYPH_ADVANCE * scale;
+            for (r, bits) in rows.iter().enumerate() {
+                for c in 0..5 {
+                    if bits & (0b10000 >> c) == 0 {
+                        continue;
+                    }
+                    for dy in 0..scale {
+                        for dx in 0..scale {
+                            let (px, py) = (left + c * scale + dx, y + r * scale + dy);
+                            if px < self.width && py < self.height {
+                                self.pixels[py * self.width + px] = gray;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// PNG file contents.
     pub fn encode_png(&self) -> anyhow::Result<Vec<u8>> {
         let mut out = Vec::new();
@@ -68,6 +113,41 @@ impl Gray {
             .context("encoding PNG data")?;
         writer.finish().context("finishing a PNG")?;
         Ok(out)
+    }
+}
+
+/// Font pixels from one character of [`Gray::text`] to the next (5 wide, 1 apart).
+pub const GLYPH_ADVANCE: usize = 6;
+
+/// Font pixels of a glyph's height.
+pub const GLYPH_HEIGHT: usize = 7;
+
+/// The width of `text` in [`Gray::text`] at `scale`, pixels (without the last gap).
+pub fn text_width(text: &str, scale: usize) -> usize {
+    (text.chars().count() * GLYPH_ADVANCE).saturating_sub(1) * scale
+}
+
+/// The 5 x 7 glyph of `ch`, one row of five bits (the leftmost the highest) per font row.
+fn glyph(ch: char) -> [u8; 7] {
+    match ch {
+        '0' => [0x0e, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0e],
+        '1' => [0x04, 0x0c, 0x04, 0x04, 0x04, 0x04, 0x0e],
+        '2' => [0x0e, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1f],
+        '3' => [0x1f, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0e],
+        '4' => [0x02, 0x06, 0x0a, 0x12, 0x1f, 0x02, 0x02],
+        '5' => [0x1f, 0x10, 0x1e, 0x01, 0x01, 0x11, 0x0e],
+        '6' => [0x06, 0x08, 0x10, 0x1e, 0x11, 0x11, 0x0e],
+        '7' => [0x1f, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
+        '8' => [0x0e, 0x11, 0x11, 0x0e, 0x11, 0x11, 0x0e],
+        '9' => [0x0e, 0x11, 0x11, 0x0f, 0x01, 0x02, 0x0c],
+        '.' => [0x00, 0x00, 0x00, 0x00, 0x00, 0x0c, 0x0c],
+        '=' => [0x00, 0x00, 0x1f, 0x00, 0x1f, 0x00, 0x00],
+        '-' => [0x00, 0x00, 0x00, 0x1f, 0x00, 0x00, 0x00],
+        '+' => [0x00, 0x04, 0x04, 0x1f, 0x04, 0x04, 0x00],
+        '±' => [0x04, 0x04, 0x1f, 0x04, 0x04, 0x00, 0x1f],
+        'Δ' => [0x04, 0x04, 0x0a, 0x0a, 0x11, 0x11, 0x1f],
+        'g' => [0x00, 0x0f, 0x11, 0x11, 0x0f, 0x01, 0x0e],
+        _ => [0; 7],
     }
 }
 
@@ -84,5 +164,20 @@ mod tests {
         assert_eq!(&big.pixels[..6], &[128, 128, 128, 255, 255, 255]);
         let png = big.encode_png().unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    }
+
+    #[test]
+    fn text_and_blit() {
+        let mut g = Gray::filled(20, 10, 255);
+        g.text(1, 1, "1", 1, 0);
+        // The 1's foot: five pixels wide... its middle three, at font row 6.
+        assert_eq!(&g.pixels[7 * 20 + 2..7 * 20 + 5], &[0, 0, 0]);
+        assert_eq!(g.pixels[0], 255);
+        assert_eq!(text_width("12", 2), 22);
+        // Clipped at the edges, no panic.
+        g.text(18, 8, "8Δ", 3, 0);
+        let mut big = Gray::filled(4, 4, 0);
+        big.blit(&Gray::filled(3, 3, 9), 2, 2);
+        assert_eq!(big.pixels, [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 9, 9, 0, 0, 9, 9]);
     }
 }

@@ -124,6 +124,12 @@ enum Command {
     /// (`scenes/fig6a_memory_tilt.toml`) and writes `<name>.memory_tilt*.npy`, a JSON sidecar
     /// and an SVG plot.
     MemoryTilt(memory_tilt::Args),
+    /// Speckle images under a few illumination tilts and their shift (Bar et al. 2019, Fig. 1):
+    /// for each g, images of a slab under tilts n Delta, each with its cross-correlation with
+    /// the untilted image, which peaks at the memory-effect shift and decays with the tilt;
+    /// reads a study file of its own (`scenes/fig1_memory_images.toml`) and writes
+    /// `<name>.*.npy`, a JSON sidecar and a labelled PNG of the images with their insets.
+    MemoryImages(memory_images::Args),
     /// The tilt-shift memory effect (Bar et al. 2020, Fig. 12): the near-field correlation of
     /// Eq. 49 over a grid of output shifts and tilts of two Gaussian beams focused on one face
     /// of a slab, seen by a camera focused on the other, against the model of Osnabrugge et al.
@@ -201,6 +207,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::FitPhase(a) => fit_phase::run(a),
         Command::MemorySpectrum(a) => memory_spectrum::run(&a),
         Command::MemoryTilt(a) => memory_tilt::run(&a),
+        Command::MemoryImages(a) => memory_images::run(&a),
         Command::TiltShift(a) => tilt_shift::run(&a),
         Command::Refocus(a) => refocus::run(&a),
         Command::SeeingThrough(a) => seeing_through::run(&a),

@@ -41,6 +41,7 @@
 //! - The result is plain data ([`MemorySpectrum`]); [`crate::plot`] draws it. Writing files is
 //!   the caller's business.
 
+mod images;
 mod refocus;
 mod refocus_images;
 mod render;
@@ -50,6 +51,10 @@ mod tilt_fit;
 mod tilt_material;
 mod tilt_shift;
 
+pub use images::{
+    MAX_IMAGE_TILTS, MemoryImages, MemoryImagesFile, MemoryImagesRow, MemoryImagesStudy,
+    load_memory_images_file, load_memory_images_str,
+};
 pub use refocus::{
     MAX_REFOCUS_POINTS, Refocus, RefocusFile, RefocusStudy, load_refocus_file, load_refocus_str,
     optimal_tilt,

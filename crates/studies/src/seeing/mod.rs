@@ -20,6 +20,10 @@
 //! correlation of `|u_0|^2` and `|u_p|^2` shifted back by the tilt difference, against the
 //! separation), which says where the object leaves the memory-effect range.
 //!
+//! The slab and camera (`SlabCamera`: the scene, its checks and cost) and the sampled
+//! patterns of one realization (`sampled_patterns`) are shared with the memory-effect images
+//! of Fig. 1 ([`crate::memory::MemoryImagesStudy`]).
+//!
 //! The study file (TOML, unknown keys rejected; lengths in micrometres, angles in
 //! millidegrees):
 //!
@@ -53,6 +57,7 @@ mod render;
 pub mod retrieval;
 
 pub use render::{SeeingCase, SeeingThrough};
+pub(crate) use render::{add, sampled_patterns};
 
 use crate::memory::{StudyOutput, StudyOverrides};
 use serde::{Deserialize, Serialize};
@@ -161,6 +166,157 @@ pub struct SeeingFile {
     pub output: StudyOutput,
 }
 
+/// A slab imaged in transmission by a camera at infinity: the geometry the seeing-through study
+/// shares with the memory-effect images ([`crate::memory::MemoryImagesStudy`]), in the units of their
+/// study files (micrometres, millidegrees).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SlabCamera {
+    /// Wavelength in the medium.
+    pub wavelength_um: f64,
+    /// Slab thickness `L`.
+    pub thickness_um: f64,
+    /// Mean free path `1 / sigma_s`.
+    pub mean_free_path_um: f64,
+    /// Single-scattering albedo.
+    pub albedo: f64,
+    /// Lateral size of the slab.
+    pub width_um: f64,
+    /// Image side, pixels.
+    pub pixels: usize,
+    /// Angular pitch of the image, millidegrees.
+    pub pixel_mdeg: f64,
+}
+
+impl SeeingFile {
+    /// The slab and camera of the study.
+    pub(crate) fn camera(&self) -> SlabCamera {
+        SlabCamera {
+            wavelength_um: self.wavelength_um,
+            thickness_um: self.thickness_um,
+            mean_free_path_um: self.mean_free_path_um,
+            albedo: self.albedo,
+            width_um: self.width_um,
+            pixels: self.pixels,
+            pixel_mdeg: self.pixel_mdeg,
+        }
+    }
+}
+
+impl SlabCamera {
+    /// Checks the slab, the camera, the mean cosines `g`, the angular step (`step.0` names it,
+    /// `step.1` in millidegrees: a whole number of pixels, returned), the realizations and
+    /// `render.paths`; errors name the study file's field.
+    pub(crate) fn validate(
+        &self,
+        g: &[f64],
+        step: (&str, f64),
+        realizations: usize,
+        paths: u64,
+    ) -> Result<usize, SceneError> {
+        let (step_field, step_mdeg) = step;
+        for (field, v) in [
+            ("wavelength_um", self.wavelength_um),
+            ("thickness_um", self.thickness_um),
+            ("mean_free_path_um", self.mean_free_path_um),
+            ("width_um", self.width_um),
+            (step_field, step_mdeg),
+            ("pixel_mdeg", self.pixel_mdeg),
+        ] {
+            positive(field, v)?;
+        }
+        if !(self.albedo > 0.0 && self.albedo <= 1.0) {
+            return Err(bad(
+                "albedo",
+                format!("must be in (0, 1] (got {})", self.albedo),
+            ));
+        }
+        let depth = self.thickness_um / self.mean_free_path_um * (1.0 / self.albedo);
+        if depth > MAX_OPTICAL_DEPTH {
+            return Err(bad(
+                "thickness_um",
+                format!(
+                    "gives an optical depth of {depth:.4e}, above {MAX_OPTICAL_DEPTH} (the cost \
+                     per path grows with it)"
+                ),
+            ));
+        }
+        if self.width_um > 1e6 * self.thickness_um {
+            return Err(bad(
+                "width_um",
+                format!(
+                    "must be at most 1e6 times the thickness ({} um; got {:.4e})",
+                    self.thickness_um, self.width_um
+                ),
+            ));
+        }
+        if self.width_um < self.thickness_um {
+            return Err(bad(
+                "width_um",
+                format!(
+                    "must be at least the thickness ({} um; got {}): light leaves a narrower \
+                     slab through its sides",
+                    self.thickness_um, self.width_um
+                ),
+            ));
+        }
+        if g.is_empty() || g.len() > MAX_CASES {
+            return Err(bad(
+                "g",
+                format!("must list 1 to {MAX_CASES} values (got {})", g.len()),
+            ));
+        }
+        for (i, &g) in g.iter().enumerate() {
+            if !(g.is_finite() && g.abs() < 1.0) {
+                return Err(bad(
+                    format!("g[{i}]"),
+                    format!("must be in (-1, 1) (got {g})"),
+                ));
+            }
+        }
+        let ratio = step_mdeg / self.pixel_mdeg;
+        let whole = ratio.round();
+        if !(whole >= 1.0 && (ratio - whole).abs() <= 1e-9 * ratio) {
+            return Err(bad(
+                step_field,
+                format!(
+                    "must be a whole number of pixels (pixel_mdeg = {}; got {step_mdeg} = \
+                     {ratio:.6} pixels)",
+                    self.pixel_mdeg
+                ),
+            ));
+        }
+        if !(8..=MAX_PIXELS).contains(&self.pixels) || !self.pixels.is_multiple_of(2) {
+            return Err(bad(
+                "pixels",
+                format!("must be even and in 8..={MAX_PIXELS} (got {})", self.pixels),
+            ));
+        }
+        let half = 0.5 * self.pixels as f64 * self.pixel_mdeg.max(step_mdeg) * 1e-3;
+        if half >= 30.0 {
+            return Err(bad(
+                "pixel_mdeg",
+                format!(
+                    "gives an image {:.4e} degrees wide; keep it within 60",
+                    2.0 * half
+                ),
+            ));
+        }
+        if !(1..=MAX_REALIZATIONS).contains(&realizations) {
+            return Err(bad(
+                "realizations",
+                format!("must be in 1..={MAX_REALIZATIONS} (got {realizations})"),
+            ));
+        }
+        if paths == 0 || paths > 1 << 32 {
+            return Err(bad(
+                "render.paths",
+                format!("must be in 1..=2^32 (got {paths})"),
+            ));
+        }
+        Ok(whole as usize)
+    }
+}
+
 fn one() -> f64 {
     1.0
 }
@@ -212,94 +368,13 @@ fn validate(file: SeeingFile, origin: &str, default_name: &str) -> Result<Seeing
         .clone()
         .unwrap_or_else(|| default_name.to_string());
     speckle_scene::validate::name(&name)?;
-    for (field, v) in [
-        ("wavelength_um", file.wavelength_um),
-        ("thickness_um", file.thickness_um),
-        ("mean_free_path_um", file.mean_free_path_um),
-        ("width_um", file.width_um),
+    let step = file.camera().validate(
+        &file.g,
         ("object_step_mdeg", file.object_step_mdeg),
-        ("pixel_mdeg", file.pixel_mdeg),
-    ] {
-        positive(field, v)?;
-    }
-    if !(file.albedo > 0.0 && file.albedo <= 1.0) {
-        return Err(bad(
-            "albedo",
-            format!("must be in (0, 1] (got {})", file.albedo),
-        ));
-    }
-    let depth = file.thickness_um / file.mean_free_path_um * (1.0 / file.albedo);
-    if depth > MAX_OPTICAL_DEPTH {
-        return Err(bad(
-            "thickness_um",
-            format!(
-                "gives an optical depth of {depth:.4e}, above {MAX_OPTICAL_DEPTH} (the cost per \
-                 path grows with it)"
-            ),
-        ));
-    }
-    if file.width_um > 1e6 * file.thickness_um {
-        return Err(bad(
-            "width_um",
-            format!(
-                "must be at most 1e6 times the thickness ({} um; got {:.4e})",
-                file.thickness_um, file.width_um
-            ),
-        ));
-    }
-    if file.width_um < file.thickness_um {
-        return Err(bad(
-            "width_um",
-            format!(
-                "must be at least the thickness ({} um; got {}): light leaves a narrower slab \
-                 through its sides",
-                file.thickness_um, file.width_um
-            ),
-        ));
-    }
-    if file.g.is_empty() || file.g.len() > MAX_CASES {
-        return Err(bad(
-            "g",
-            format!("must list 1 to {MAX_CASES} values (got {})", file.g.len()),
-        ));
-    }
-    for (i, &g) in file.g.iter().enumerate() {
-        if !(g.is_finite() && g.abs() < 1.0) {
-            return Err(bad(
-                format!("g[{i}]"),
-                format!("must be in (-1, 1) (got {g})"),
-            ));
-        }
-    }
+        file.realizations,
+        file.render.paths,
+    )?;
     let points = object_points(&file.object)?;
-    let ratio = file.object_step_mdeg / file.pixel_mdeg;
-    let step = ratio.round();
-    if !(step >= 1.0 && (ratio - step).abs() <= 1e-9 * ratio) {
-        return Err(bad(
-            "object_step_mdeg",
-            format!(
-                "must be a whole number of pixels (pixel_mdeg = {}; got {} = {ratio:.6} pixels)",
-                file.pixel_mdeg, file.object_step_mdeg
-            ),
-        ));
-    }
-    let step = step as usize;
-    if !(8..=MAX_PIXELS).contains(&file.pixels) || !file.pixels.is_multiple_of(2) {
-        return Err(bad(
-            "pixels",
-            format!("must be even and in 8..={MAX_PIXELS} (got {})", file.pixels),
-        ));
-    }
-    let half = 0.5 * file.pixels as f64 * file.pixel_mdeg.max(file.object_step_mdeg) * 1e-3;
-    if half >= 30.0 {
-        return Err(bad(
-            "pixel_mdeg",
-            format!(
-                "gives an image {:.4e} degrees wide; keep it within 60",
-                2.0 * half
-            ),
-        ));
-    }
     let extent = |n: usize| (n - 1) * step + 1;
     let rows = file.object.len();
     let cols = file.object[0].chars().count();
@@ -336,21 +411,6 @@ fn validate(file: SeeingFile, origin: &str, default_name: &str) -> Result<Seeing
                 points.len(),
                 file.pixels
             ),
-        ));
-    }
-    if !(1..=MAX_REALIZATIONS).contains(&file.realizations) {
-        return Err(bad(
-            "realizations",
-            format!(
-                "must be in 1..={MAX_REALIZATIONS} (got {})",
-                file.realizations
-            ),
-        ));
-    }
-    if file.render.paths == 0 || file.render.paths > 1 << 32 {
-        return Err(bad(
-            "render.paths",
-            format!("must be in 1..=2^32 (got {})", file.render.paths),
         ));
     }
     let r = &file.retrieval;

@@ -2,8 +2,8 @@
 //! autocorrelation against the one a perfect memory effect would give, the phase-retrieved
 //! object, and the correlation of the illuminators' patterns against their separation.
 
-use super::SeeingStudy;
 use super::retrieval::{Retrieval, autocorrelation, crop, retrieve, similarity};
+use super::{SeeingStudy, SlabCamera};
 use crate::StudyError;
 use crate::memory::{Array, slab_tracer, slab_tracer_json};
 use serde_json::{Value, json};
@@ -68,88 +68,32 @@ impl SeeingStudy {
     /// directions, row-major) of case `g`; every pair, source-major.
     pub fn scene(&self, g: f64) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
         let f = &self.file;
-        let slab = Aabb::centered(
-            DVec3::ZERO,
-            DVec3::new(f.width_um, f.width_um, f.thickness_um),
-        )
-        .map_err(|e| EstimatorError::InvalidInput {
-            field: "width_um".into(),
-            reason: e.to_string(),
-        })?;
-        let sigma_s = 1.0 / f.mean_free_path_um;
-        let sigma_a = sigma_s * (1.0 / f.albedo - 1.0);
-        let medium = HomogeneousBox::new(slab, sigma_s, sigma_a).map_err(|e| {
-            EstimatorError::InvalidInput {
-                field: "mean_free_path_um".into(),
-                reason: e.to_string(),
-            }
-        })?;
-        let phase = Phase::hg(g).map_err(|e| EstimatorError::InvalidInput {
-            field: "g".into(),
-            reason: e.to_string(),
-        })?;
-        let mdeg = |a: f64| (a * 1e-3).to_radians().tan();
         let rows = f.object.len() as f64;
         let cols = f.object[0].chars().count() as f64;
-        let sources = self
+        let tilts: Vec<(f64, f64)> = self
             .points
             .iter()
             .map(|&(r, c)| {
-                let tx = mdeg((c as f64 - 0.5 * (cols - 1.0)) * f.object_step_mdeg);
-                let ty = mdeg((r as f64 - 0.5 * (rows - 1.0)) * f.object_step_mdeg);
-                Source::plane_wave(DVec3::new(tx, ty, 1.0))
+                (
+                    (c as f64 - 0.5 * (cols - 1.0)) * f.object_step_mdeg,
+                    (r as f64 - 0.5 * (rows - 1.0)) * f.object_step_mdeg,
+                )
             })
-            .collect::<Result<Vec<_>, _>>()?;
-        let n = f.pixels;
-        let mid = 0.5 * (n as f64 - 1.0);
-        let sensors = (0..n * n)
-            .map(|q| {
-                let tx = mdeg(((q % n) as f64 - mid) * f.pixel_mdeg);
-                let ty = mdeg(((q / n) as f64 - mid) * f.pixel_mdeg);
-                Sensor::far_field(DVec3::new(tx, ty, 1.0))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let pairs = Pair::all(sources.len(), sensors.len());
-        Ok(Scene::new(
-            medium,
-            phase,
-            f.wavelength_um,
-            sources,
-            sensors,
-            pairs,
-        )?)
+            .collect();
+        self.file.camera().scene(g, &tilts)
     }
 
     /// Rough cost of the study on `threads` threads.
     pub fn estimate(&self, threads: usize) -> speckle_scene::cost::Estimate {
-        use speckle_scene::cost::{expected_vertices, field_seconds};
         let f = &self.file;
-        let t = 1.0 / (f.mean_free_path_um * f.albedo);
-        let taus = [t * f.width_um, t * f.width_um, t * f.thickness_um];
-        let legs = (self.points.len() + f.pixels * f.pixels) as f64;
-        let pairs = self.points.len() as f64 * (f.pixels * f.pixels) as f64;
-        let seconds: f64 =
-            f.g.iter()
-                .map(|&g| {
-                    let v = expected_vertices(
-                        &taus,
-                        f.albedo,
-                        g,
-                        speckle_medium::Dimension::Three,
-                        u32::MAX,
-                    );
-                    f.realizations as f64 * field_seconds(f.render.paths as f64, v, legs, pairs)
-                })
-                .sum();
-        speckle_scene::cost::Estimate {
-            bytes: 16.0 * pairs * (3.0 + threads as f64)
-                + 8.0 * (f.g.len() * f.realizations) as f64 * (f.pixels * f.pixels) as f64
-                + 1e6,
-            memory_field: "pixels".into(),
-            seconds: seconds / threads.max(1) as f64,
-            time_field: "render.paths".into(),
-            vertices_per_path: 0.0,
-        }
+        f.camera().estimate(
+            &f.g,
+            self.points.len(),
+            f.realizations,
+            f.render.paths,
+            f.g.len() * f.realizations,
+            threads,
+        )
     }
 
     /// Renders every realization of every case (realization `r` of case `c` from
@@ -186,21 +130,8 @@ impl SeeingStudy {
             let mut memory = vec![0.0; np];
             let mut memory_sq = vec![0.0; np];
             for r in 0..f.realizations {
-                let o = FieldOptions {
-                    realizations: 1,
-                    paths_per_realization: f.render.paths,
-                    seed: derive_seed(f.render.seed, (ci * f.realizations + r) as u64),
-                    coherence: Coherence::ForwardOnly,
-                    add_mean: false,
-                    sampling: slab_tracer(Coherence::ForwardOnly),
-                };
-                let est = render_fields(&scene, &o, progress)?;
-                let pattern = |p: usize| -> Vec<f64> {
-                    (0..n * n)
-                        .map(|q| est.fields.get(0, p * n * n + q).norm_sqr())
-                        .collect()
-                };
-                let patterns: Vec<Vec<f64>> = (0..np).map(pattern).collect();
+                let seed = derive_seed(f.render.seed, (ci * f.realizations + r) as u64);
+                let patterns = sampled_patterns(&scene, f.render.paths, seed, progress)?;
                 let image: Vec<f64> = (0..n * n)
                     .map(|q| patterns.iter().map(|s| s[q]).sum())
                     .collect();
@@ -322,7 +253,131 @@ impl SeeingStudy {
     }
 }
 
-fn add(acc: &mut [f64], x: &[f64]) {
+impl SlabCamera {
+    /// The slab (HG mean cosine `g`), plane-wave sources tilted by `(theta_x, theta_y)`
+    /// millidegrees each (`unit(tan theta_x, tan theta_y, 1)`) and far-field sensors on the
+    /// `pixels x pixels` grid `pixel_mdeg` apart about +z (row-major, rows along +y); every
+    /// pair, source-major. Errors name `g` for a bad mean cosine.
+    pub(crate) fn scene(
+        &self,
+        g: f64,
+        tilts_mdeg: &[(f64, f64)],
+    ) -> Result<Scene<HomogeneousBox, Phase>, EstimatorError> {
+        let slab = Aabb::centered(
+            DVec3::ZERO,
+            DVec3::new(self.width_um, self.width_um, self.thickness_um),
+        )
+        .map_err(|e| EstimatorError::InvalidInput {
+            field: "width_um".into(),
+            reason: e.to_string(),
+        })?;
+        let sigma_s = 1.0 / self.mean_free_path_um;
+        let sigma_a = sigma_s * (1.0 / self.albedo - 1.0);
+        let medium = HomogeneousBox::new(slab, sigma_s, sigma_a).map_err(|e| {
+            EstimatorError::InvalidInput {
+                field: "mean_free_path_um".into(),
+                reason: e.to_string(),
+            }
+        })?;
+        let phase = Phase::hg(g).map_err(|e| EstimatorError::InvalidInput {
+            field: "g".into(),
+            reason: e.to_string(),
+        })?;
+        let mdeg = |a: f64| (a * 1e-3).to_radians().tan();
+        let sources = tilts_mdeg
+            .iter()
+            .map(|&(x, y)| Source::plane_wave(DVec3::new(mdeg(x), mdeg(y), 1.0)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let n = self.pixels;
+        let mid = 0.5 * (n as f64 - 1.0);
+        let sensors = (0..n * n)
+            .map(|q| {
+                let tx = mdeg(((q % n) as f64 - mid) * self.pixel_mdeg);
+                let ty = mdeg(((q / n) as f64 - mid) * self.pixel_mdeg);
+                Sensor::far_field(DVec3::new(tx, ty, 1.0))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let pairs = Pair::all(sources.len(), sensors.len());
+        Ok(Scene::new(
+            medium,
+            phase,
+            self.wavelength_um,
+            sources,
+            sensors,
+            pairs,
+        )?)
+    }
+
+    /// Rough cost of `realizations` renders of `paths` paths for each of `gs`, with `sources`
+    /// plane waves, keeping `images` images, on `threads` threads.
+    pub(crate) fn estimate(
+        &self,
+        gs: &[f64],
+        sources: usize,
+        realizations: usize,
+        paths: u64,
+        images: usize,
+        threads: usize,
+    ) -> speckle_scene::cost::Estimate {
+        use speckle_scene::cost::{expected_vertices, field_seconds};
+        let t = 1.0 / (self.mean_free_path_um * self.albedo);
+        let taus = [t * self.width_um, t * self.width_um, t * self.thickness_um];
+        let pixels = (self.pixels * self.pixels) as f64;
+        let legs = sources as f64 + pixels;
+        let pairs = sources as f64 * pixels;
+        let seconds: f64 = gs
+            .iter()
+            .map(|&g| {
+                let v = expected_vertices(
+                    &taus,
+                    self.albedo,
+                    g,
+                    speckle_medium::Dimension::Three,
+                    u32::MAX,
+                );
+                realizations as f64 * field_seconds(paths as f64, v, legs, pairs)
+            })
+            .sum();
+        speckle_scene::cost::Estimate {
+            bytes: 16.0 * pairs * (3.0 + threads as f64) + 8.0 * images as f64 * pixels + 1e6,
+            memory_field: "pixels".into(),
+            seconds: seconds / threads.max(1) as f64,
+            time_field: "render.paths".into(),
+            vertices_per_path: 0.0,
+        }
+    }
+}
+
+/// One realization of the fields of every pair of `scene` (a [`SlabCamera::scene`]) from
+/// `paths` sampled paths (Alg. 2, `render_fields`: forward paths, the first vertex exponential
+/// in depth and its direction from the phase function, the mean (ballistic) field left out):
+/// per source, its intensity pattern `|u(v)|^2` over the sensors.
+pub(crate) fn sampled_patterns(
+    scene: &Scene<HomogeneousBox, Phase>,
+    paths: u64,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<f64>>, EstimatorError> {
+    let o = FieldOptions {
+        realizations: 1,
+        paths_per_realization: paths,
+        seed,
+        coherence: Coherence::ForwardOnly,
+        add_mean: false,
+        sampling: slab_tracer(Coherence::ForwardOnly),
+    };
+    let est = render_fields(scene, &o, progress)?;
+    let m = scene.sensors().len();
+    Ok((0..scene.sources().len())
+        .map(|p| {
+            (0..m)
+                .map(|q| est.fields.get(0, p * m + q).norm_sqr())
+                .collect()
+        })
+        .collect())
+}
+
+pub(crate) fn add(acc: &mut [f64], x: &[f64]) {
     acc.iter_mut().zip(x).for_each(|(a, b)| *a += b);
 }
 
@@ -337,7 +392,7 @@ fn normalised(mut a: Vec<f64>) -> Vec<f64> {
 }
 
 /// The Pearson correlation of two equally long samples (0 when either is constant).
-fn pearson(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn pearson(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;
     let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
     let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);

@@ -2,7 +2,9 @@
 //! image processing of the seeing-through study, on plain row-major `n x n` arrays.
 //!
 //! - [`autocorrelation`]: `A(d) = sum_x f(x) f(x + d)` of an image (its mean removed, or not),
-//!   zero-padded so that nothing wraps, centred (`A(0)` at `(n, n)` of a `2n x 2n` array).
+//!   zero-padded so that nothing wraps, centred (`A(0)` at `(n, n)` of a `2n x 2n` array);
+//!   [`cross_correlation`] of two images likewise, and [`normalised_cross_correlation`], the
+//!   Pearson correlation over the overlap at each lag (the memory-effect images' insets).
 //! - [`retrieve`]: an object from the Fourier magnitude its autocorrelation gives (`|F O| =
 //!   sqrt(F A)`), by Fienup's hybrid input-output (HIO, feedback `beta`) followed by error
 //!   reduction, with a real, non-negative object inside a square support, from several random
@@ -66,23 +68,86 @@ impl Fft2 {
 /// at row `n`, column `n` (lag `(dy, dx)` at `(n + dy, n + dx)`; the row and column `0` hold the
 /// lags `-n`, which are zero).
 pub fn autocorrelation(f: &[f64], n: usize, remove_mean: bool) -> Vec<f64> {
-    assert_eq!(f.len(), n * n, "an n x n image");
-    let mean = if remove_mean {
-        f.iter().sum::<f64>() / (n * n) as f64
-    } else {
-        0.0
+    correlation(f, None, n, remove_mean)
+}
+
+/// The cross-correlation `X(d) = sum_x f(x) h(x + d)` of two row-major `n x n` images (each
+/// with its own mean removed first when `remove_mean`), laid out as [`autocorrelation`]
+/// (which it equals when `h` is `f`): a pattern `h` that is `f` shifted by `s` (`h(x + s) =
+/// f(x)`) peaks at lag `s`.
+pub fn cross_correlation(f: &[f64], h: &[f64], n: usize, remove_mean: bool) -> Vec<f64> {
+    correlation(f, Some(h), n, remove_mean)
+}
+
+/// The normalised cross-correlation of two row-major `n x n` images, in the centred `w x w`
+/// window of lags (`w <= 2n`, even; lag `(dy, dx)` at `(w/2 + dy, w/2 + dx)`): per lag `d`, the
+/// Pearson correlation of `f(x)` and `h(x + d)` over the pixels `x` where both are defined (so
+/// 1 where `h` is `f` shifted by `d`, whatever the overlap), 0 where either is constant there.
+/// Five [`cross_correlation`]s with the images, their squares and a mask of ones give the
+/// overlap's sums (the masked form of Padfield 2012).
+pub fn normalised_cross_correlation(f: &[f64], h: &[f64], n: usize, w: usize) -> Vec<f64> {
+    let centred = |f: &[f64]| {
+        let m = f.iter().sum::<f64>() / f.len() as f64;
+        f.iter().map(|v| v - m).collect::<Vec<f64>>()
     };
+    let (a, b) = (centred(f), centred(h));
+    let squares = |v: &[f64]| v.iter().map(|x| x * x).collect::<Vec<f64>>();
+    let ones = vec![1.0; n * n];
+    let x = |p: &[f64], q: &[f64]| crop(&cross_correlation(p, q, n, false), 2 * n, w);
+    let (sab, sa, sb) = (x(&a, &b), x(&a, &ones), x(&ones, &b));
+    let (saa, sbb) = (x(&squares(&a), &ones), x(&ones, &squares(&b)));
+    let half = (w / 2) as i64;
+    (0..w * w)
+        .map(|i| {
+            let (dy, dx) = ((i / w) as i64 - half, (i % w) as i64 - half);
+            let count = ((n as i64 - dy.abs()).max(0) * (n as i64 - dx.abs()).max(0)) as f64;
+            if count < 2.0 {
+                return 0.0;
+            }
+            let cov = sab[i] - sa[i] * sb[i] / count;
+            let (va, vb) = (
+                saa[i] - sa[i] * sa[i] / count,
+                sbb[i] - sb[i] * sb[i] / count,
+            );
+            if va > 0.0 && vb > 0.0 {
+                cov / (va * vb).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// [`cross_correlation`] of `f` with `h`, or with itself (one transform) when `h` is `None`.
+fn correlation(f: &[f64], h: Option<&[f64]>, n: usize, remove_mean: bool) -> Vec<f64> {
     let m = 2 * n;
     let fft = Fft2::new(m);
-    let mut a = vec![Complex64::new(0.0, 0.0); m * m];
-    for r in 0..n {
-        for c in 0..n {
-            a[r * m + c] = Complex64::new(f[r * n + c] - mean, 0.0);
+    let padded = |f: &[f64]| {
+        assert_eq!(f.len(), n * n, "an n x n image");
+        let mean = if remove_mean {
+            f.iter().sum::<f64>() / (n * n) as f64
+        } else {
+            0.0
+        };
+        let mut a = vec![Complex64::new(0.0, 0.0); m * m];
+        for r in 0..n {
+            for c in 0..n {
+                a[r * m + c] = Complex64::new(f[r * n + c] - mean, 0.0);
+            }
         }
+        fft.apply(&mut a, false);
+        a
+    };
+    let mut a = padded(f);
+    match h {
+        None => a
+            .iter_mut()
+            .for_each(|v| *v = Complex64::new(v.norm_sqr(), 0.0)),
+        Some(h) => a
+            .iter_mut()
+            .zip(padded(h))
+            .for_each(|(v, w)| *v = v.conj() * w),
     }
-    fft.apply(&mut a, false);
-    a.iter_mut()
-        .for_each(|v| *v = Complex64::new(v.norm_sqr(), 0.0));
     fft.apply(&mut a, true);
     // Shift lag 0 to (n, n).
     let mut out = vec![0.0; m * m];
@@ -302,6 +367,80 @@ mod tests {
             let got = a[((n as i64 + dy) * 2 * n as i64 + n as i64 + dx) as usize];
             assert!((got - want).abs() < 1e-9 * want.abs().max(1.0), "{dy},{dx}");
         }
+    }
+
+    /// The cross-correlation is the direct sum with the means removed, and a shifted copy
+    /// peaks at its shift.
+    #[test]
+    fn cross_correlation_is_the_direct_sum() {
+        let n = 6i64;
+        let f: Vec<f64> = (0..n * n).map(|i| ((i * 7) % 11) as f64).collect();
+        let h: Vec<f64> = (0..n * n).map(|i| ((i * 5) % 13) as f64).collect();
+        let x = cross_correlation(&f, &h, n as usize, true);
+        let (mf, mh) = (f.iter().sum::<f64>() / 36.0, h.iter().sum::<f64>() / 36.0);
+        for (dy, dx) in [(0i64, 0i64), (1, 2), (-3, 1), (4, -5)] {
+            let mut want = 0.0;
+            for r in 0..n {
+                for c in 0..n {
+                    let (r2, c2) = (r + dy, c + dx);
+                    if (0..n).contains(&r2) && (0..n).contains(&c2) {
+                        want += (f[(r * n + c) as usize] - mf) * (h[(r2 * n + c2) as usize] - mh);
+                    }
+                }
+            }
+            let got = x[((n + dy) * 2 * n + n + dx) as usize];
+            assert!((got - want).abs() < 1e-9 * want.abs().max(1.0), "{dy},{dx}");
+        }
+        // h(x + (0, 2)) = f(x) for a point: the peak sits at lag (0, 2).
+        let mut point = vec![0.0; 36];
+        let mut moved = vec![0.0; 36];
+        point[2 * 6 + 1] = 1.0;
+        moved[2 * 6 + 3] = 1.0;
+        let x = cross_correlation(&point, &moved, 6, false);
+        let top = (0..x.len()).max_by(|&a, &b| x[a].total_cmp(&x[b])).unwrap();
+        assert_eq!(top as i64, n * 2 * n + n + 2);
+    }
+
+    /// The normalised cross-correlation is the Pearson correlation over the overlap, lag by
+    /// lag, and 1 at the shift of a shifted copy.
+    #[test]
+    fn normalised_cross_correlation_is_the_overlap_pearson() {
+        let n = 12i64;
+        let f: Vec<f64> = (0..n * n).map(|i| ((i * 7919) % 101) as f64).collect();
+        let h: Vec<f64> = (0..n * n).map(|i| ((i * 104729) % 89) as f64).collect();
+        let w = 16;
+        let x = normalised_cross_correlation(&f, &h, n as usize, w);
+        let pearson = |a: &[f64], b: &[f64]| {
+            let k = a.len() as f64;
+            let (ma, mb) = (a.iter().sum::<f64>() / k, b.iter().sum::<f64>() / k);
+            let c: f64 = a.iter().zip(b).map(|(p, q)| (p - ma) * (q - mb)).sum();
+            let va: f64 = a.iter().map(|p| (p - ma) * (p - ma)).sum();
+            let vb: f64 = b.iter().map(|q| (q - mb) * (q - mb)).sum();
+            c / (va * vb).sqrt()
+        };
+        for (dy, dx) in [(0i64, 0i64), (1, 2), (-3, 1), (4, -7), (-8, 0)] {
+            let (mut a, mut b) = (vec![], vec![]);
+            for r in 0..n {
+                for c in 0..n {
+                    let (r2, c2) = (r + dy, c + dx);
+                    if (0..n).contains(&r2) && (0..n).contains(&c2) {
+                        a.push(f[(r * n + c) as usize]);
+                        b.push(h[(r2 * n + c2) as usize]);
+                    }
+                }
+            }
+            let got = x[((8 + dy) * 16 + 8 + dx) as usize];
+            assert!((got - pearson(&a, &b)).abs() < 1e-9, "{dy},{dx}");
+        }
+        // h(x + (0, 3)) = f(x): 1 at lag (0, 3).
+        let shifted: Vec<f64> = (0..n * n)
+            .map(|i| f[(i / n * n + (i % n + n - 3) % n) as usize])
+            .collect();
+        let x = normalised_cross_correlation(&f, &shifted, n as usize, w);
+        assert!((x[8 * 16 + 8 + 3] - 1.0).abs() < 1e-9);
+        assert!(
+            (normalised_cross_correlation(&f, &f, n as usize, w)[8 * 16 + 8] - 1.0).abs() < 1e-9
+        );
     }
 
     #[test]
