@@ -2,6 +2,11 @@
 
 use crate::{Aabb, Medium, MediumError, TypeMix};
 use glam::DVec3;
+use lattice::Lattice;
+use macro_cells::MacroCells;
+
+mod lattice;
+mod macro_cells;
 
 /// The most voxels a [`VoxelGrid`] may hold, `2^27` (about 134 million). The grid keeps about
 /// 24 bytes per voxel (`sigma_s`, `sigma_t` and a sampling table, plus 4 for a material id), so
@@ -81,6 +86,14 @@ pub enum Tracking {
     /// until the optical depth reaches `tau`. Exact; costs one step per voxel crossed, whatever
     /// the contrast of the grid.
     Regular,
+    /// Delta tracking against local majorants: the largest `sigma_t` of each block of voxels
+    /// (macro cell), the block's edge chosen by a cost model when the grid is built
+    /// ([`VoxelGrid::with_tracking`]; `macro_cells.rs`). Unbiased, the same flight distribution
+    /// as [`Tracking::Delta`]; costs the blocks crossed plus the tentative collisions at each
+    /// block's own majorant, so a small dense region no longer sets the rate everywhere. Where
+    /// the model finds no block size cheaper than one global majorant it is [`Tracking::Delta`]
+    /// (the same flights, bitwise).
+    Local,
 }
 
 /// A heterogeneous medium on an `nx x ny x nz` grid of equal voxels filling an axis-aligned box;
@@ -141,6 +154,8 @@ pub struct VoxelGrid {
     scatter_cdf: Vec<f64>,
     last_scatterer: usize,
     tracking: Tracking,
+    /// The macro cells of [`Tracking::Local`] (built when it is chosen and pays).
+    macro_cells: Option<Box<MacroCells>>,
 }
 
 fn shape(flat: bool, dims: [usize; 3]) -> String {
@@ -434,14 +449,33 @@ impl VoxelGrid {
             } else {
                 Tracking::Delta
             },
+            macro_cells: None,
         })
     }
 
     /// The same grid with another flight sampler (by default delta tracking, or regular
     /// tracking where delta tracking would take more than [`MAX_DELTA_COLLISIONS`] steps).
+    /// [`Tracking::Local`] builds its macro cells here (one pass over the voxels per block size
+    /// tried, `log2` of the largest voxel count of them).
     pub fn with_tracking(mut self, tracking: Tracking) -> Self {
         self.tracking = tracking;
+        self.macro_cells = (tracking == Tracking::Local)
+            .then(|| {
+                let flat = self.bounds.dimension() == crate::Dimension::Two;
+                MacroCells::build(&self.voxels(), &self.sigma_t, flat).0
+            })
+            .flatten()
+            .map(Box::new);
         self
+    }
+
+    /// [`Tracking::Local`]'s cost model for this grid: `(block edge in voxels, or None for one
+    /// global majorant; expected work per flight with it; with one global majorant)`, the work
+    /// counted in tentative collisions (module `macro_cells`).
+    pub fn local_majorant_plan(&self) -> (Option<usize>, f64, f64) {
+        let flat = self.bounds.dimension() == crate::Dimension::Two;
+        let (cells, cost, global) = MacroCells::build(&self.voxels(), &self.sigma_t, flat);
+        (cells.map(|c| c.lattice.stride[0]), cost, global)
     }
 
     /// The flight sampler in use.
@@ -502,15 +536,16 @@ impl VoxelGrid {
         ])
     }
 
-    /// Coordinate of the `k`-th voxel plane along axis `a` (`k = n` is exactly the box's upper
-    /// face).
-    #[inline]
-    fn plane(&self, a: usize, k: usize) -> f64 {
-        if k == self.dims[a] {
-            self.bounds.max()[a]
-        } else {
-            self.bounds.min()[a] + k as f64 * self.cell[a]
-        }
+    /// The voxels as a lattice of blocks of one voxel.
+    fn voxels(&self) -> Lattice {
+        Lattice::new(
+            self.bounds.min(),
+            self.bounds.max(),
+            self.dims,
+            self.cell,
+            self.inv_cell,
+            [1, 1, 1],
+        )
     }
 
     /// Walks the voxels crossed by `o + t d` for `t` in `[t0, t1]` (an interval inside the box,
@@ -525,55 +560,9 @@ impl VoxelGrid {
         t1: f64,
         mut f: impl FnMut(usize, f64, f64) -> bool,
     ) {
-        let p = o + t0 * d;
-        let mut idx = [0usize; 3];
-        let mut step = [0isize; 3];
-        let mut t_next = [f64::INFINITY; 3];
-        let inv_d = d.recip();
-        for a in 0..3 {
-            let n = self.dims[a];
-            if n == 1 {
-                // No inner planes (always the case for z in flatland).
-                continue;
-            }
-            let c = (p[a] - self.bounds.min()[a]) * self.inv_cell[a];
-            if d[a] > 0.0 {
-                idx[a] = (c as usize).min(n - 1);
-                step[a] = 1;
-                t_next[a] = (self.plane(a, idx[a] + 1) - o[a]) * inv_d[a];
-            } else if d[a] < 0.0 {
-                // A point on plane k moving down is in voxel k - 1.
-                idx[a] = ((c.ceil() - 1.0).max(0.0) as usize).min(n - 1);
-                step[a] = -1;
-                t_next[a] = (self.plane(a, idx[a]) - o[a]) * inv_d[a];
-            } else {
-                idx[a] = (c as usize).min(n - 1);
-            }
-        }
-        let mut t = t0;
-        loop {
-            let a = if t_next[0] <= t_next[1] {
-                if t_next[0] <= t_next[2] { 0 } else { 2 }
-            } else if t_next[1] <= t_next[2] {
-                1
-            } else {
-                2
-            };
-            let t_cross = t_next[a];
-            let end = t_cross.min(t1).max(t);
-            if !f(self.linear(idx), t, end) || t_cross >= t1 {
-                return;
-            }
-            t = end;
-            let next = idx[a] as isize + step[a];
-            if next < 0 || next >= self.dims[a] as isize {
-                // Left the grid a rounding error before t1.
-                return;
-            }
-            idx[a] = next as usize;
-            let k = if step[a] > 0 { idx[a] + 1 } else { idx[a] };
-            t_next[a] = (self.plane(a, k) - o[a]) * inv_d[a];
-        }
+        self.voxels().walk(o, d, t0, t1, |idx, t_in, t_out| {
+            f(self.linear(idx), t_in, t_out)
+        });
     }
 
     /// `int sigma_t dt` over `t` in `[t0, t1]` along `o + t d` (multiply by `|d|` for a length).
@@ -746,9 +735,13 @@ impl Medium for VoxelGrid {
             // From outside: fly through the vacuum up to the box.
             self.bounds.clip(x, dir, 0.0, f64::INFINITY)?
         };
-        match self.tracking {
-            Tracking::Delta => self.flight_delta(x, dir, t0, t1, next_uniform),
-            Tracking::Regular => self.flight_regular(x, dir, t0, t1, next_uniform),
+        match (self.tracking, &self.macro_cells) {
+            (Tracking::Regular, _) => self.flight_regular(x, dir, t0, t1, next_uniform),
+            (Tracking::Local, Some(cells)) => {
+                let st = |t: f64| self.sigma_t[self.voxel_clamped(x + t * dir)];
+                cells.flight(x, dir, t0, t1, st, next_uniform)
+            }
+            _ => self.flight_delta(x, dir, t0, t1, next_uniform),
         }
     }
 

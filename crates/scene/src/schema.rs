@@ -270,6 +270,24 @@ pub struct MediumSpec {
     /// integer ids.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub materials: Option<Vec<MaterialSpec>>,
+    /// How a grid (or layers) samples free flights (default: delta tracking against the
+    /// largest extinction, regular tracking where that would take too many steps).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracking: Option<TrackingSpec>,
+}
+
+/// `medium.tracking`: the free-flight sampler of a voxel grid
+/// (`speckle_medium::Tracking`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackingSpec {
+    /// Delta tracking against the largest extinction.
+    Delta,
+    /// Delta tracking against the largest extinction of each block of voxels (macro cells),
+    /// where a cost model finds that cheaper; else as `delta`.
+    Local,
+    /// Regular tracking along the voxels (3D-DDA).
+    Regular,
 }
 
 /// One particle type of `[[medium.particles]]`: a Mie sphere.

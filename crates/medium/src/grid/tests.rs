@@ -216,7 +216,7 @@ fn two_layers_exact_depth_and_flight_distribution() {
             (0.0, 0.0),
         ),
     ];
-    for tracking in [Tracking::Delta, Tracking::Regular] {
+    for tracking in [Tracking::Delta, Tracking::Regular, Tracking::Local] {
         let g = g.clone().with_tracking(tracking);
         for (i, (name, x, dir, (l1, a1), (l2, a2))) in cases.into_iter().enumerate() {
             let total = a1 * l1 + a2 * l2;
@@ -260,7 +260,7 @@ fn dda_matches_brute_force_on_a_random_grid() {
             if i % 8 == 0 {
                 let other = (a + 1) % 3;
                 let k = (i / 8) % g.dims()[other];
-                q2[other] = g.plane(other, k);
+                q2[other] = g.voxels().plane(other, k);
                 let mut p2 = p;
                 p2[other] = q2[other];
                 let (od, (bf, tol)) = (g.optical_depth(p2, q2), brute_depth(&g, p2, q2, m));
@@ -301,10 +301,10 @@ fn dda_edge_cases() {
         od
     };
     // Along x through the edge where the planes y = -0.5 and z = 1.1666.. meet.
-    let z = g.plane(2, 1);
+    let z = g.voxels().plane(2, 1);
     check(DVec3::new(-2.0, -0.5, z), DVec3::new(4.0, -0.5, z));
     // Starting exactly on an inner face, moving down; and moving up.
-    let x = g.plane(0, 2);
+    let x = g.voxels().plane(0, 2);
     check(DVec3::new(x, 0.3, 1.0), DVec3::new(-1.0, 0.1, 2.0));
     check(DVec3::new(x, 0.3, 1.0), DVec3::new(3.0, 0.1, 2.0));
     // Diagonal through voxel corners.
@@ -503,7 +503,7 @@ fn flatland_grid() {
     let expect = (-row).exp();
     let n = 100_000;
     let se = (expect * (1.0 - expect) / n as f64).sqrt();
-    for tracking in [Tracking::Delta, Tracking::Regular] {
+    for tracking in [Tracking::Delta, Tracking::Regular, Tracking::Local] {
         let g = g.clone().with_tracking(tracking);
         let (esc, _) = escape_and_depths(&g, DVec3::new(0.0, 0.5, 0.0), DVec3::X, n, 22);
         eprintln!(

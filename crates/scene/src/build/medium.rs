@@ -10,12 +10,12 @@ use super::phase::build_phase;
 use crate::SceneError;
 use crate::npy;
 use crate::safe::{Files, MAX_GRID_BYTES};
-use crate::schema::{GridKind, MaterialSpec, MediumSpec, ParticleSpec, PhaseSpec};
+use crate::schema::{GridKind, MaterialSpec, MediumSpec, ParticleSpec, PhaseSpec, TrackingSpec};
 use crate::validate::{invalid, non_negative, position, positive};
 use serde::Serialize;
 use speckle_medium::{
     Aabb, AnyMedium, Concentration, Dimension, HomogeneousBox, Material, MediumError, ParticleMix,
-    ParticleType, TypeMix, VoxelGrid,
+    ParticleType, Tracking, TypeMix, VoxelGrid,
 };
 use speckle_phase::{Complex64, MieSphere, Phase, PhaseFunction};
 use std::path::Path;
@@ -284,6 +284,33 @@ pub fn build_medium(
     vacuum_wavelength: f64,
     dim: Dimension,
 ) -> Result<BuiltMedium, SceneError> {
+    let mut built = build_coefficients(m, phase, files, vacuum_wavelength, dim)?;
+    if let Some(t) = m.tracking {
+        let AnyMedium::Grid(grid) = &mut built.medium else {
+            return Err(invalid(
+                "medium.tracking",
+                "only a voxel grid (medium.grid or medium.layers) chooses how free flights are \
+                 sampled; a box samples them exactly",
+            ));
+        };
+        let tracking = match t {
+            TrackingSpec::Delta => Tracking::Delta,
+            TrackingSpec::Local => Tracking::Local,
+            TrackingSpec::Regular => Tracking::Regular,
+        };
+        *grid = grid.clone().with_tracking(tracking);
+    }
+    Ok(built)
+}
+
+/// [`build_medium`] without `medium.tracking`.
+fn build_coefficients(
+    m: &MediumSpec,
+    phase: Option<&PhaseSpec>,
+    files: Files<'_>,
+    vacuum_wavelength: f64,
+    dim: Dimension,
+) -> Result<BuiltMedium, SceneError> {
     let b = bounds(m, dim)?;
     let host_index = positive("medium.host_index", m.host_index.unwrap_or(1.0))?;
     let coefficients_given =
@@ -542,6 +569,47 @@ mod tests {
         assert!(e(&[1.0, 3.0], 3).contains("2 layers but 3"));
         assert!(e(&[-1.0, 5.0], 2).starts_with("medium.layers[0]"));
         assert!(e(&[4.0 / 3.0 * 1e-6, 4.0 - 4.0 / 3.0 * 1e-6], 2).contains("no common step"));
+    }
+
+    #[test]
+    fn tracking_is_chosen_for_grids_only() {
+        let files = Files {
+            base: Path::new("."),
+            access: crate::safe::Access::CONFINED,
+        };
+        let build = |extra: &str| {
+            let text = format!(
+                "size = [4.0, 4.0, 4.0]\nlayers = [0.25, 3.75]\n{extra}\n[[materials]]\n\
+                 sigma_s = 400.0\n[[materials]]\nsigma_s = 1.0\n"
+            );
+            let m: MediumSpec = toml::from_str(&text).unwrap();
+            build_medium(&m, None, files, 1.0, Dimension::Three)
+        };
+        let tracking = |extra: &str| match build(extra).unwrap().medium {
+            AnyMedium::Grid(g) => g.tracking(),
+            _ => panic!("not a grid"),
+        };
+        assert_eq!(tracking(""), Tracking::Delta);
+        assert_eq!(tracking("tracking = \"regular\""), Tracking::Regular);
+        assert_eq!(tracking("tracking = \"local\""), Tracking::Local);
+        // A thin dense layer over a sparse one: local majorants pay.
+        let AnyMedium::Grid(g) = build("").unwrap().medium else {
+            panic!()
+        };
+        let (edge, cost, global) = g.local_majorant_plan();
+        assert!(edge.is_some() && cost < global, "{edge:?} {cost} {global}");
+        assert!(
+            toml::from_str::<MediumSpec>("size = [1.0, 1.0, 1.0]\ntracking = \"sideways\"")
+                .is_err()
+        );
+        let boxed: MediumSpec =
+            toml::from_str("size = [4.0, 4.0, 4.0]\nsigma_s = 1.0\ntracking = \"local\"").unwrap();
+        let e = build_medium(&boxed, None, files, 1.0, Dimension::Three).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("medium.tracking: only a voxel grid"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -123,8 +123,7 @@ pub(crate) fn slab_tracer_json(coherence: Coherence) -> Value {
 pub(crate) fn tilt_scene(
     width: f64,
     thickness: f64,
-    sigma_s: f64,
-    sigma_a: f64,
+    (sigma_s, sigma_a): (f64, f64),
     phase: Phase,
     wavelength: f64,
     angles: &[f64],
@@ -389,8 +388,7 @@ impl Study {
         tilt_scene(
             self.width,
             self.thickness,
-            band.sigma_s,
-            band.sigma_a,
+            (band.sigma_s, band.sigma_a),
             band.phase.clone(),
             // The wavelength in the host: k = 2 pi n_host / lambda.
             band.lambda / self.host,

@@ -340,8 +340,7 @@ impl TiltStudy {
         tilt_scene(
             self.width,
             self.thickness,
-            m.sigma_s(),
-            m.sigma_a(),
+            (m.sigma_s(), m.sigma_a()),
             phase,
             self.wavelength,
             &self.angles,
