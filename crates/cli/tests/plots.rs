@@ -244,3 +244,56 @@ fn a_multi_tau_grid_renders_as_its_lags_listed() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("units.time"), "{}", stderr(&o));
 }
+
+/// Checks a study figure's x axis: at least three ticks, neighbours distinct, and `unit` in the
+/// label.
+fn check_axis(svg: &str, what: &str, unit: &str) {
+    let (label, ticks) = x_axis(svg);
+    println!("{what}: {label}: {ticks:?}");
+    assert!(ticks.len() >= 3, "{what}: {ticks:?}");
+    for w in ticks.windows(2) {
+        assert_ne!(w[0], w[1], "{what}: neighbouring tick labels {ticks:?}");
+    }
+    assert!(label.contains(unit), "{what}: no {unit} in {label:?}");
+}
+
+/// The memory-tilt figures of the shipped Figs. 10b (reflection, angles to 240 mdeg) and 10e
+/// (mixtures, to 25 mdeg), at a few paths: distinct ticks, the tilt's unit, one legend entry per
+/// row and no C1 curve in reflection.
+#[test]
+fn memory_tilt_plots_have_distinct_ticks_and_units() {
+    let dir = tempfile::tempdir().unwrap();
+    for (file, rows, c1) in [
+        ("fig10b_memory_albedo", 5, false),
+        ("fig10e_memory_mixtures", 4, true),
+    ] {
+        let text = std::fs::read_to_string(format!(
+            "{}/../../scenes/{file}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap();
+        let s = write(dir.path(), &format!("{file}.toml"), &text);
+        let o = speckle(
+            dir.path(),
+            &[
+                "memory-tilt",
+                s.to_str().unwrap(),
+                "--paths",
+                "3200",
+                "-q",
+                "--out",
+                "m",
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let svg =
+            std::fs::read_to_string(dir.path().join(format!("m/{file}.memory_tilt.svg"))).unwrap();
+        check_axis(&svg, file, "millidegrees");
+        let legend = texts(&svg)
+            .iter()
+            .filter(|(_, c)| c.contains("g = ") || c.contains("HG(") || c == "isotropic")
+            .count();
+        assert_eq!(legend, rows, "{file}: legend entries");
+        assert_eq!(svg.contains("C1 (diffusion)"), c1, "{file}");
+    }
+}
