@@ -1,9 +1,10 @@
 //! `speckle covariance --band R --tile I/N` and `speckle merge` of the tiles: the merged band
 //! is bitwise the whole `--band R` render (arrays and the sidecar's summary), with two sources
 //! (tiles interleaved per `s1`), for tiles rendered on different thread counts and given in any
-//! order; and what is refused: missing, duplicate, damaged and foreign tiles (another seed,
-//! radius or split), more tiles than rows, `--band auto` with `--tile`, tiles mixed with
-//! shards.
+//! order, also with `--single-beyond`; and what is refused: missing, duplicate, damaged and
+//! foreign tiles (another seed, radius, split or `--single-beyond`), more tiles than rows,
+//! `--band auto` with `--tile`, tiles mixed with shards, `--single-beyond` not below the band's
+//! radius.
 
 mod common;
 use common::*;
@@ -181,6 +182,87 @@ fn bad_tiles_are_refused_and_write_nothing() {
         ),
         (&["--tile", "0/2"][..], "--band"),
         (&["--band", "1", "--shard", "0/2"][..], "shard"),
+    ] {
+        let mut all = vec!["covariance", "b.toml", "-q", "--out", "x"];
+        all.extend_from_slice(args);
+        let o = speckle(d, &all);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+        assert!(!d.join("x").exists());
+    }
+}
+
+/// `--single-beyond R1`: tiles with it merge bitwise into the whole render with it (arrays and
+/// summary, which states R1 and the single-only entries); tiles with and without it are not
+/// merged together; `R1 >= R` (given, or against the radius `--band auto` chose) and the flag
+/// without `--band` are refused naming the flag, writing nothing.
+#[test]
+fn single_beyond_tiles_merge_bitwise_and_bad_radii_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(d, "b.toml", SCENE);
+    let one = ["--single-beyond", "1"];
+    let mut args = vec![
+        "covariance",
+        "b.toml",
+        "--band",
+        "2",
+        "-q",
+        "--out",
+        "whole",
+    ];
+    args.extend_from_slice(&one);
+    run(d, &args);
+    let whole = summary(&d.join("whole/b.cov_band.json"));
+    assert_eq!(whole["single_beyond"]["radius"], 1);
+    // 2 sources, 9 x 5 pixels: the offsets of max(|dy|, |dx|) = 2 inside the image.
+    let within = |r: usize, n: usize| n + (1..=r).map(|k| 2 * (n - k)).sum::<usize>();
+    let outer = 4 * (within(2, 5) * within(2, 9) - within(1, 5) * within(1, 9));
+    assert_eq!(whole["single_beyond"]["single_only_entries"], outer);
+    tiles(d, "t", "2", 3, &[2, 0, 1], &one);
+    let paths = tile_paths(d, "t");
+    let mut args = vec!["merge", "--out", "m"];
+    args.extend(paths.iter().map(String::as_str));
+    run(d, &args);
+    for f in ["b.cov_band.npy", "b.cov_band_stderr.npy"] {
+        let (a, b) = (
+            std::fs::read(d.join("whole").join(f)).unwrap(),
+            std::fs::read(d.join("m").join(f)).unwrap(),
+        );
+        assert!(a == b, "{f} of the tiles differs from the whole render's");
+    }
+    let mut merged = summary(&d.join("m/b.cov_band.json"));
+    merged.as_object_mut().unwrap().remove("merged_tiles");
+    assert_eq!(whole, merged);
+    // A tile without the option among tiles with it.
+    tiles(d, "plain", "2", 3, &[1], &[]);
+    let o = speckle(
+        d,
+        &[
+            "merge",
+            "--out",
+            "x",
+            &paths[0],
+            &tile_paths(d, "plain")[0],
+            &paths[2],
+        ],
+    );
+    assert!(!o.status.success() && stderr(&o).contains("--single-beyond radii"));
+    assert!(!d.join("x").exists());
+    for (args, want) in [
+        (
+            &["--band", "2", "--single-beyond", "2"][..],
+            "--single-beyond",
+        ),
+        (
+            &["--band", "2", "--single-beyond", "3", "--tile", "0/2"][..],
+            "--single-beyond",
+        ),
+        (
+            &["--band", "auto", "--single-beyond", "9"][..],
+            "--single-beyond",
+        ),
+        (&["--single-beyond", "1"][..], "--band"),
     ] {
         let mut all = vec!["covariance", "b.toml", "-q", "--out", "x"];
         all.extend_from_slice(args);

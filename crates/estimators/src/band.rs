@@ -17,12 +17,24 @@
 //! means element by element), from pair values that do not depend on which entries are kept, so
 //! a tile's entries are bitwise the whole band's (`tiles_are_bitwise_the_whole_band`).
 //!
+//! **Single scattering alone beyond `R1`** ([`ImageBand::with_single_beyond`], `speckle
+//! covariance --band R --single-beyond R1`): beyond the memory-effect range the multiple-
+//! scattering part of the covariance vanishes while single scattering keeps a correlation
+//! (Bar et al. 2019, Sec. 7 and Fig. 14). The entries whose pixel offset `max(|dx|, |dy|)`
+//! exceeds `R1` then receive only the first vertex of each path (the one-vertex sub-path `x1`,
+//! `B = 1`: the `single` part of [`crate::render_covariance`] and of
+//! [`crate::render_single_scattering`]'s definition), the others every vertex: the later
+//! vertices' products are formed for the inner entries only. Outer entries are bitwise the
+//! single-scattering part of the full band render, inner ones bitwise its entries
+//! (`single_beyond_keeps_inner_entries_and_single_part_outside`); what the outer entries lose
+//! is the multiple-scattering part there, the option's bias.
+//!
 //! What is dropped is reported, not hidden: [`BandEstimate::edge_correlation`] is the largest
 //! normalised magnitude `|C| / sqrt(I I)` on the band's outermost ring (offset `radius` along
 //! one axis), the level the correlation has fallen to where the band stops.
 
 use crate::covariance::{Target, render_target};
-use crate::{CovarianceOptions, EstimatorError, Scene};
+use crate::{CovarianceEstimate, CovarianceOptions, EstimatorError, Scene};
 use num_complex::Complex64;
 use speckle_medium::Medium;
 use speckle_paths::NoFactor;
@@ -57,6 +69,9 @@ pub struct ImageBand {
     /// The image rows `y0..y1` whose pixels `p` are kept (`0..ny` for the whole band).
     y0: usize,
     y1: usize,
+    /// Entries whose pixel offset `max(|dx|, |dy|)` exceeds this receive single scattering
+    /// only ([`ImageBand::with_single_beyond`]).
+    single_beyond: Option<usize>,
 }
 
 impl ImageBand {
@@ -121,6 +136,7 @@ impl ImageBand {
                 radius,
                 y0: rows.start,
                 y1: rows.end,
+                single_beyond: None,
             }),
             _ => Err(invalid(
                 "band",
@@ -214,9 +230,63 @@ impl ImageBand {
         self.radius
     }
 
-    /// Calls `f(element, p, q)` for every array element inside the image: its index in the
-    /// flattened array and its pair indices.
-    fn each(&self, mut f: impl FnMut(usize, usize, usize)) {
+    /// This band with single scattering alone (the first vertex of every path, `B = 1`) in the
+    /// entries whose pixel offset `max(|dx|, |dy|)` exceeds `r1` pixels, the full estimator
+    /// within (module docs). An error names `--single-beyond` unless `r1 < radius`.
+    ///
+    /// ```
+    /// use speckle_estimators::ImageBand;
+    /// let b = ImageBand::new(1, 8, 8, 3).unwrap().with_single_beyond(1).unwrap();
+    /// assert_eq!(b.single_beyond(), Some(1));
+    /// // 3 x 3 offsets within 1 pixel of the 7 x 7: the other 40 are single-only.
+    /// let within = ImageBand::new(1, 8, 8, 1).unwrap().entries().len();
+    /// assert_eq!(b.single_only_entries(), b.entries().len() - within);
+    /// assert!(ImageBand::new(1, 8, 8, 3).unwrap().with_single_beyond(3).is_err());
+    /// ```
+    pub fn with_single_beyond(self, r1: usize) -> Result<Self, EstimatorError> {
+        if r1 >= self.radius {
+            return Err(EstimatorError::InvalidInput {
+                field: "--single-beyond".into(),
+                reason: format!(
+                    "{r1} pixels must be less than the band's radius {} (entries beyond it \
+                     receive single scattering only)",
+                    self.radius
+                ),
+            });
+        }
+        Ok(Self {
+            single_beyond: Some(r1),
+            ..self
+        })
+    }
+
+    /// The offset in pixels beyond which entries receive single scattering only, if any
+    /// ([`ImageBand::with_single_beyond`]).
+    pub fn single_beyond(&self) -> Option<usize> {
+        self.single_beyond
+    }
+
+    /// The entries of the whole band (inside the image) whose offset `max(|dx|, |dy|)` is at
+    /// most `r` pixels (`r <= radius`): `S^2` times the offsets summed over the pixels that
+    /// keep them in the image.
+    pub fn whole_entries_within(&self, r: usize) -> usize {
+        let r = r.min(self.radius);
+        let along =
+            |n: usize| (0..=r).map(move |d| if d == 0 { n } else { 2 * n.saturating_sub(d) });
+        self.sources * self.sources * along(self.ny).sum::<usize>() * along(self.nx).sum::<usize>()
+    }
+
+    /// The entries of the whole band that receive single scattering only (0 without
+    /// [`ImageBand::with_single_beyond`]).
+    pub fn single_only_entries(&self) -> usize {
+        self.single_beyond.map_or(0, |r1| {
+            self.whole_entries_within(self.radius) - self.whole_entries_within(r1)
+        })
+    }
+
+    /// Calls `f(element, p, q, offset)` for every array element inside the image: its index
+    /// in the flattened array, its pair indices and its pixel offset `max(|dx|, |dy|)`.
+    fn each(&self, mut f: impl FnMut(usize, usize, usize, usize)) {
         let r = self.radius as isize;
         let (nx, ny, v) = (self.nx as isize, self.ny as isize, self.nx * self.ny);
         let mut element = 0;
@@ -229,7 +299,8 @@ impl ImageBand {
                             for dx in -r..=r {
                                 let (yy, xx) = (y + dy, x + dx);
                                 if (0..ny).contains(&yy) && (0..nx).contains(&xx) {
-                                    f(element, p, s2 * v + (yy * nx + xx) as usize);
+                                    let q = s2 * v + (yy * nx + xx) as usize;
+                                    f(element, p, q, dy.unsigned_abs().max(dx.unsigned_abs()));
                                 }
                                 element += 1;
                             }
@@ -244,8 +315,30 @@ impl ImageBand {
     /// The kept entries `(p, q)` in array order (those inside the image).
     pub fn entries(&self) -> Vec<(u32, u32)> {
         let mut e = vec![];
-        self.each(|_, p, q| e.push((p as u32, q as u32)));
+        self.each(|_, p, q, _| e.push((p as u32, q as u32)));
         e
+    }
+
+    /// The kept entries in render order, the full estimator's first (all of them, in array
+    /// order, without [`ImageBand::with_single_beyond`]; else those within `R1` in array order,
+    /// then the single-only ones in array order), with each one's position in array order
+    /// and the number of full ones.
+    fn render_entries(&self) -> (Vec<(u32, u32)>, Vec<usize>, usize) {
+        let r1 = self.single_beyond.unwrap_or(self.radius);
+        let (mut inner, mut outer) = (vec![], vec![]);
+        let mut k = 0;
+        self.each(|_, p, q, off| {
+            let e = (k, (p as u32, q as u32));
+            if off <= r1 {
+                inner.push(e)
+            } else {
+                outer.push(e)
+            }
+            k += 1;
+        });
+        let full = inner.len();
+        let (position, entries) = inner.into_iter().chain(outer).unzip();
+        (entries, position, full)
     }
 
     /// `values` of the kept entries (in [`ImageBand::entries`] order) laid out in the band's
@@ -253,7 +346,7 @@ impl ImageBand {
     fn scatter(&self, values: impl Iterator<Item = Complex64>) -> Vec<Complex64> {
         let mut out = vec![Complex64::new(f64::NAN, f64::NAN); self.len()];
         let mut values = values;
-        self.each(|i, _, _| out[i] = values.next().expect("one value per kept entry"));
+        self.each(|i, _, _, _| out[i] = values.next().expect("one value per kept entry"));
         out
     }
 }
@@ -390,36 +483,53 @@ impl BandCorrelation {
 
 /// Renders the band `band` of the covariance of `scene` (an image of sensors, see
 /// [`ImageBand::of`]): the estimator of [`crate::render_covariance`] with the same paths for
-/// the same seed, its kept entries only (module docs). Memory: the kept entries' sums, not
-/// `J^2`.
+/// the same seed, its kept entries only (module docs); with [`ImageBand::with_single_beyond`],
+/// single scattering alone beyond `R1`. Memory: the kept entries' sums, not `J^2`.
 pub fn render_covariance_band<M: Medium, P: PhaseFunction>(
     scene: &Scene<M, P>,
     options: &CovarianceOptions,
     band: &ImageBand,
     progress: &dyn Progress,
 ) -> Result<BandEstimate, EstimatorError> {
+    let (est, position) = render_parts(scene, options, band, progress)?;
+    Ok(BandEstimate {
+        band: *band,
+        value: band.scatter(in_array_order(&est.total.value, &position)),
+        std_error: band.scatter(in_array_order(&est.total.std_error, &position)),
+        paths: est.paths,
+    })
+}
+
+/// The band's parts (single, multiple, total) as `E x 1` columns in render order, and each
+/// entry's position in array order ([`ImageBand::render_entries`]).
+fn render_parts<M: Medium, P: PhaseFunction>(
+    scene: &Scene<M, P>,
+    options: &CovarianceOptions,
+    band: &ImageBand,
+    progress: &dyn Progress,
+) -> Result<(CovarianceEstimate, Vec<usize>), EstimatorError> {
     if scene.len() != band.sources * band.nx * band.ny || !crate::connect::is_grid(scene) {
         return Err(EstimatorError::InvalidInput {
             field: "band".into(),
             reason: "the band is not of this scene's pairs (ImageBand::of)".into(),
         });
     }
-    let entries = band.entries();
-    let est = render_target(
-        scene,
-        options,
-        &NoFactor,
-        Target::Entries(&entries),
-        progress,
-    )?;
-    let column =
-        |m: &speckle_stats::CMatrix| (0..m.rows()).map(|i| m.get(i, 0)).collect::<Vec<_>>();
-    Ok(BandEstimate {
-        band: *band,
-        value: band.scatter(column(&est.total.value).into_iter()),
-        std_error: band.scatter(column(&est.total.std_error).into_iter()),
-        paths: est.paths,
-    })
+    let (entries, position, multiple) = band.render_entries();
+    let target = Target::Entries {
+        entries: &entries,
+        multiple,
+    };
+    let est = render_target(scene, options, &NoFactor, target, progress)?;
+    Ok((est, position))
+}
+
+/// The `E x 1` column `m` in render order, rearranged into array order by `position`.
+fn in_array_order(m: &speckle_stats::CMatrix, position: &[usize]) -> std::vec::IntoIter<Complex64> {
+    let mut out = vec![Complex64::ZERO; position.len()];
+    for (i, &k) in position.iter().enumerate() {
+        out[k] = m.get(i, 0);
+    }
+    out.into_iter()
 }
 
 #[cfg(test)]
@@ -502,5 +612,77 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("tile"), "{e}");
+    }
+
+    /// `--single-beyond R1`: the entries beyond `R1` pixels hold bitwise the single-scattering
+    /// part of the full band render on the same paths (values and standard errors, which are
+    /// the single part's since the multiple part is zero there), the entries within `R1`
+    /// bitwise the full band's; tiles of it are bitwise its rows; `R1 >= R` is refused naming
+    /// the flag.
+    #[test]
+    fn single_beyond_keeps_inner_entries_and_single_part_outside() {
+        let s = scene();
+        let opts = CovarianceOptions {
+            paths: 600,
+            seed: 3,
+            ..Default::default()
+        };
+        let full = ImageBand::of(&s, 5, 4, 2).unwrap();
+        let (parts, position) = render_parts(&s, &opts, &full, &NoProgress).unwrap();
+        let whole = |m: &speckle_stats::CMatrix| full.scatter(in_array_order(m, &position));
+        let (single, single_se) = (whole(&parts.single.value), whole(&parts.single.std_error));
+        let (total, total_se) = (whole(&parts.total.value), whole(&parts.total.std_error));
+        let same = |a: Complex64, b: Complex64| {
+            a.re.to_bits() == b.re.to_bits() && a.im.to_bits() == b.im.to_bits()
+        };
+        let r = full.radius() as isize;
+        let k = 2 * full.radius() + 1;
+        for r1 in [0, 1] {
+            let band = full.with_single_beyond(r1).unwrap();
+            let e = render_covariance_band(&s, &opts, &band, &NoProgress).unwrap();
+            let (mut inner, mut outer, mut dropped) = (0, 0, 0.0f64);
+            for (i, (&v, &se)) in e.value.iter().zip(&e.std_error).enumerate() {
+                let (dy, dx) = ((i / k) % k, i % k);
+                let off = (dy as isize - r)
+                    .unsigned_abs()
+                    .max((dx as isize - r).unsigned_abs());
+                if v.re.is_nan() {
+                    assert!(total[i].re.is_nan());
+                } else if off <= r1 {
+                    assert!(same(v, total[i]) && same(se, total_se[i]), "inner {i}");
+                    inner += 1;
+                } else {
+                    // x + 0.0 is x: the total of a zero multiple part is the single part.
+                    assert!(v == single[i] && se == single_se[i], "outer {i}");
+                    dropped = dropped.max((total[i] - v).norm());
+                    outer += 1;
+                }
+            }
+            assert_eq!(outer, band.single_only_entries());
+            assert_eq!(inner + outer, full.entries().len());
+            assert!(
+                dropped > 0.0,
+                "the full render has multiple scattering beyond {r1}"
+            );
+            // Tiles with the option are bitwise its rows.
+            let [ns, _, nx, _, _, _] = band.shape();
+            let pixel = ns * k * k;
+            for t in [0..1, 1..4] {
+                let tile = ImageBand::of_tile(&s, 5, 4, 2, t.clone())
+                    .unwrap()
+                    .with_single_beyond(r1)
+                    .unwrap();
+                let te = render_covariance_band(&s, &opts, &tile, &NoProgress).unwrap();
+                for s1 in 0..ns {
+                    let n = t.len();
+                    let a = &te.value[s1 * n * nx * pixel..(s1 + 1) * n * nx * pixel];
+                    let b =
+                        &e.value[(s1 * 4 + t.start) * nx * pixel..(s1 * 4 + t.end) * nx * pixel];
+                    assert!(a.iter().zip(b).all(|(&a, &b)| same(a, b)), "tile {t:?}");
+                }
+            }
+        }
+        let err = full.with_single_beyond(2).unwrap_err().to_string();
+        assert!(err.contains("--single-beyond"), "{err}");
     }
 }

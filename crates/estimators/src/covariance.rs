@@ -80,6 +80,9 @@ struct CovarianceSink<'a, 's, 'p, M, P, F: PathFactor> {
     coherence: Coherence,
     /// The listed entries `(p, q)` of a render of entries ([`Target::Entries`]), else `None`.
     entries: Option<&'a [(u32, u32)]>,
+    /// How many of the listed entries, from the first, receive multiple scattering (the
+    /// others single scattering only, [`Target::Entries`]).
+    multiple: usize,
     poll: &'a mut Poll<'p>,
 }
 
@@ -90,8 +93,14 @@ pub(crate) enum Target<'e> {
     Full,
     /// The diagonal: the intensities.
     Diagonal,
-    /// Listed entries `(p, q)` of the matrix (real path factors only).
-    Entries(&'e [(u32, u32)]),
+    /// Listed entries `(p, q)` of the matrix (real path factors only), of which the first
+    /// `multiple` receive every vertex's contribution and the others only the first vertex's
+    /// (single scattering, `B = 1`: their multiple-scattering sums stay zero, and their total
+    /// is their single part).
+    Entries {
+        entries: &'e [(u32, u32)],
+        multiple: usize,
+    },
 }
 
 impl<M: Medium, P: PhaseFunction, F: PathFactor> CovarianceSink<'_, '_, '_, M, P, F> {
@@ -100,9 +109,11 @@ impl<M: Medium, P: PhaseFunction, F: PathFactor> CovarianceSink<'_, '_, '_, M, P
     fn push(&mut self, part: usize, w: f64, f: F::Value) {
         match self.entries {
             None => self.conn.push_moment(&mut self.sums[part], w, f),
-            Some(e) => self
-                .conn
-                .push_entries(&mut self.sums[part], e, w * f.real()),
+            Some(e) => {
+                let e = if part == 0 { e } else { &e[..self.multiple] };
+                self.conn
+                    .push_entries(&mut self.sums[part], e, w * f.real())
+            }
         }
     }
 }
@@ -376,14 +387,20 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
     check_paths(options.paths)?;
     speckle_endpoints::check_near_field(scene.sources(), scene.sensors(), scene.phases())?;
     let tracer = scene.tracer(options.sampling, options.coherence)?;
-    let (layout, j, entries) = match (F::Value::REAL, target) {
-        (true, Target::Full) => (Layout::Hermitian, scene.len(), None),
-        (true, Target::Diagonal) => (Layout::HermitianDiagonal, scene.len(), None),
-        (false, Target::Full) => (Layout::General, scene.len(), None),
-        (false, Target::Diagonal) => (Layout::GeneralDiagonal, scene.len(), None),
-        (_, Target::Entries(e)) => {
+    let (layout, j, entries, multiple) = match (F::Value::REAL, target) {
+        (true, Target::Full) => (Layout::Hermitian, scene.len(), None, 0),
+        (true, Target::Diagonal) => (Layout::HermitianDiagonal, scene.len(), None, 0),
+        (false, Target::Full) => (Layout::General, scene.len(), None, 0),
+        (false, Target::Diagonal) => (Layout::GeneralDiagonal, scene.len(), None, 0),
+        (_, Target::Entries { entries, multiple }) => {
             assert!(F::Value::REAL, "listed entries take real path factors");
-            (Layout::GeneralDiagonal, e.len(), Some(e))
+            assert!(multiple <= entries.len(), "a prefix of the listed entries");
+            (
+                Layout::GeneralDiagonal,
+                entries.len(),
+                Some(entries),
+                multiple,
+            )
         }
     };
     let init = || Scratch {
@@ -398,6 +415,7 @@ fn render_run<M: Medium, P: PhaseFunction, F: PathFactor>(
             sums,
             coherence: options.coherence,
             entries,
+            multiple,
             poll,
         };
         sink.conn.begin_path(n);

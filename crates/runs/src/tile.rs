@@ -11,8 +11,9 @@
 //! bytes 8..12   format version, u32 little-endian (1)
 //! bytes 12..16  0 (reserved)
 //! bytes 16..24  header length H, u64 little-endian (at most MAX_HEADER_BYTES)
-//! H bytes       the header, JSON (UTF-8): tile, rows, radius, shape, run hash, seed, paths, the
-//!               scene (TOML), where its input files are, wall time
+//! H bytes       the header, JSON (UTF-8): tile, rows, radius, single_beyond (`--single-beyond`
+//!               or null; absent: null), shape, run hash, seed, paths, the scene (TOML), where
+//!               its input files are, wall time
 //! 8 bytes       the header's checksum: XXH64 (seed 0) of bytes 0..24 + H, u64 little-endian
 //! payload       the tile's values, then its standard errors: complex128 (re, im as f64
 //!               little-endian), shape (S, rows, nx, S, 2R + 1, 2R + 1) each
@@ -53,6 +54,9 @@ pub struct TileHeader {
     pub rows: Range<usize>,
     /// The band's half-width in pixels.
     pub radius: usize,
+    /// The offset beyond which entries hold single scattering only (`--single-beyond`), if
+    /// any (absent from tiles of earlier speckles: none).
+    pub single_beyond: Option<usize>,
     /// The shape of each of its arrays, `(S, rows, nx, S, 2R + 1, 2R + 1)`.
     pub shape: [usize; 6],
     /// The run hash of the covariance render ([`run_hash`]).
@@ -115,6 +119,7 @@ pub fn tile_bytes(
         "tile": [tile.index, tile.count],
         "rows": [rows.start, rows.end],
         "radius": est.band.radius(),
+        "single_beyond": est.band.single_beyond(),
         "shape": est.band.shape(),
         "run_hash": run_hash(p, Kind::Covariance),
         "seed": p.render.seed,
@@ -251,6 +256,10 @@ fn parse_header(v: &Value) -> Result<TileHeader, String> {
         tile,
         rows: y0..y1,
         radius: num("radius")? as usize,
+        single_beyond: match &v["single_beyond"] {
+            Value::Null => None,
+            n => Some(n.as_u64().ok_or("`single_beyond` is not a count or null")? as usize),
+        },
         shape,
         run_hash: text("run_hash")?,
         seed: num("seed")?,
@@ -341,6 +350,14 @@ pub fn merge_tiles(paths: &[PathBuf], overrides: &Overrides) -> Result<BandTiles
         if h.radius != h0.radius {
             return Err(other("band radii", &h0.radius, &h.radius));
         }
+        if h.single_beyond != h0.single_beyond {
+            let r1 = |r: Option<usize>| r.map_or("none".to_string(), |r| r.to_string());
+            return Err(other(
+                "--single-beyond radii",
+                &r1(h0.single_beyond),
+                &r1(h.single_beyond),
+            ));
+        }
         if h.tile.count != h0.tile.count {
             return Err(other("splits (tile counts)", &h0.tile.count, &h.tile.count));
         }
@@ -391,6 +408,10 @@ pub fn merge_tiles(paths: &[PathBuf], overrides: &Overrides) -> Result<BandTiles
         // A band too large to render whole may still be merged: its shape is what counts.
         ImageBand::of_tile(&problem.scene, nx, ny, h0.radius, 0..1).map_err(|_| e)
     })?;
+    let band = match h0.single_beyond {
+        Some(r1) => band.with_single_beyond(r1)?,
+        None => band,
+    };
     for t in &tiles {
         let h = &t.header;
         let rows = tile_rows(ny, h.tile)?;
@@ -556,11 +577,7 @@ impl BandTiles {
     /// Kept entries of the whole band (inside the image): `S^2` times the offsets `(dy, dx)`
     /// within the radius summed over the pixels that they keep in the image.
     pub fn kept_entries(&self) -> usize {
-        let [s, ny, nx, _, _, _] = self.band.whole_shape();
-        let r = self.band.radius();
-        let along =
-            |n: usize| (0..=r).map(move |d| if d == 0 { n } else { 2 * n.saturating_sub(d) });
-        s * s * along(ny).sum::<usize>() * along(nx).sum::<usize>()
+        self.band.whole_entries_within(self.band.radius())
     }
 }
 

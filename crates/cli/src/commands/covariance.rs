@@ -38,6 +38,12 @@ pub struct Args {
     /// `<name>.cov_band.I-of-N.tile`, for `speckle merge`. Every tile renders all the paths.
     #[arg(long, value_name = "I/N", requires = "band")]
     pub tile: Option<Shard>,
+    /// With `--band`: the entries whose pixel offset max(|dx|, |dy|) exceeds R1 (less than the
+    /// band's R) receive single scattering only (one-vertex sub-paths), where the multiple-
+    /// scattering part has vanished beyond the memory-effect range; the entries within R1 the
+    /// full estimator. Saves the later vertices' products of the outer entries.
+    #[arg(long, value_name = "R1", requires = "band")]
+    pub single_beyond: Option<usize>,
 }
 
 /// The half-width of `--band`: pixels, or chosen by a pilot.
@@ -79,7 +85,7 @@ pub use speckle::runs::covariance_options as options;
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let (p, run) = a.load()?;
     match a.band {
-        Some(BandRadius::Pixels(r)) => band::render_band(&p, run, r, None, a.tile),
+        Some(BandRadius::Pixels(r)) => band::render_band(&p, run, r, a.single_beyond, None, a.tile),
         Some(BandRadius::Auto) if a.tile.is_some() => Err(p
             .in_document(speckle::scene::SceneError::InvalidInput {
                 field: "tile".into(),
@@ -114,7 +120,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 }
             );
             let r = c.radius;
-            band::render_band(&p, run, r, Some(c), None)
+            band::render_band(&p, run, r, a.single_beyond, Some(c), None)
         }
         None => render(&p, run),
     }

@@ -13,15 +13,19 @@ use std::sync::Arc;
 const LAYOUT: &str = "cov_band: complex128 (S, ny, nx, S, 2R + 1, 2R + 1), element [s1, y, x, \
                       s2, dy + R, dx + R] = C[(s1, pixel (y, x)), (s2, pixel (y + dy, x + dx))], \
                       NaN where the offset leaves the image; entries beyond R pixels are not \
-                      rendered; cov_band_stderr: re = standard error of Re C, im = of Im C";
+                      rendered; with single_beyond, entries whose offset max(|dy|, |dx|) exceeds \
+                      its radius hold the single-scattering part only; cov_band_stderr: re = \
+                      standard error of Re C, im = of Im C";
 
 /// Renders and writes the band of half-width `radius` pixels of the covariance of `p`, whose
-/// sensors must form one image ([`render_covariance_band`]); with `tile`, only that tile of
-/// its rows, as a tile file.
+/// sensors must form one image ([`render_covariance_band`]); with `single_beyond`, single
+/// scattering alone beyond that offset; with `tile`, only that tile of its rows, as a tile
+/// file.
 pub(super) fn render_band(
     p: &Problem,
     run: RunOptions,
     radius: usize,
+    single_beyond: Option<usize>,
     auto: Option<speckle::runs::BandChoice>,
     tile: Option<Shard>,
 ) -> anyhow::Result<()> {
@@ -38,8 +42,11 @@ pub(super) fn render_band(
         Some(t) => tile_rows(grid.ny, t).map_err(error::runs)?,
         None => 0..grid.ny,
     };
-    let band =
+    let mut band =
         ImageBand::of_tile(&p.scene, grid.nx, grid.ny, radius, rows).map_err(error::estimator)?;
+    if let Some(r1) = single_beyond {
+        band = band.with_single_beyond(r1).map_err(error::estimator)?;
+    }
     let kept = band.entries().len();
     let mut staged = plan(p, p.band_estimate(kept, threads()), run)?;
     let opts = options(p);
@@ -70,10 +77,16 @@ pub(super) fn render_band(
     stage_arrays(&mut staged, &mut files, n, arrays);
     let edge = est.edge_correlation();
     write_sidecar(p, &mut staged, files, &est, kept, auto, wall)?;
+    let single = band.single_beyond().map_or(String::new(), |r1| {
+        format!(
+            "; single scattering only beyond {r1} px ({} entries)",
+            band.single_only_entries()
+        )
+    });
     say!(
         "{n}: covariance band of radius {radius} px over {} x {} pixels ({} kept entries of J^2 = \
          {:.3e}) from {} paths in {wall:.2} s ({} threads); largest correlation on the band's \
-         edge {edge:.3}",
+         edge {edge:.3}{single}",
         grid.nx,
         grid.ny,
         kept,
@@ -87,12 +100,20 @@ pub(super) fn render_band(
 /// What the sidecar says of a band: its summary and render facts.
 struct Facts<'a> {
     radius: usize,
+    /// `--single-beyond` and the number of entries it leaves single-only.
+    single: Option<(usize, usize)>,
     shape: [usize; 6],
     kept: usize,
     edge: f64,
     mean: Vec<f64>,
     auto: Option<&'a speckle::runs::BandChoice>,
     tiles: Option<usize>,
+}
+
+/// The sidecar's `single_beyond` facts of `band`: its `R1` and single-only entries.
+fn single_facts(band: &ImageBand) -> Option<(usize, usize)> {
+    band.single_beyond()
+        .map(|r1| (r1, band.single_only_entries()))
 }
 
 /// Stages the sidecar of the whole band `est` (`kept` entries).
@@ -107,6 +128,7 @@ fn write_sidecar(
 ) -> anyhow::Result<()> {
     let facts = Facts {
         radius: est.band.radius(),
+        single: single_facts(&est.band),
         shape: est.band.shape(),
         kept,
         edge: est.edge_correlation(),
@@ -146,6 +168,16 @@ fn stage_band_sidecar(
                        where it reaches epsilon",
         });
     }
+    if let Some((r1, n)) = f.single {
+        summary["single_beyond"] = json!({
+            "radius": r1,
+            "single_only_entries": n,
+            "entries": "those whose pixel offset max(|dy|, |dx|) exceeds radius hold the \
+                        single-scattering part only (the first vertex x1 of every path, B = 1, \
+                        as cov_single of the dense render); multiple scattering, assumed to \
+                        have vanished there, is not rendered; the others the full estimator",
+        });
+    }
     if let Some(n) = f.tiles {
         summary["merged_tiles"] = json!(n);
     }
@@ -172,6 +204,7 @@ pub fn write_merged_band(m: BandTiles, mut staged: Staged) -> anyhow::Result<()>
     }
     let facts = Facts {
         radius: m.band.radius(),
+        single: single_facts(&m.band),
         shape: m.band.whole_shape(),
         kept: m.kept_entries(),
         edge: m.correlation.edge_correlation(),
