@@ -59,6 +59,17 @@ pub struct Figure {
     pub curves: Vec<Curve>,
 }
 
+/// How [`Figure::svg_styled`] draws a figure beyond its data; the default is [`Figure::svg`]'s
+/// (a linear y axis, solid curves).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Style {
+    /// A logarithmic y axis: non-positive values are left out, and an error bar reaching zero
+    /// or below is cut a decade under its point.
+    pub y_log: bool,
+    /// Indices of the curves drawn dashed (references, closed forms).
+    pub dashed: Vec<usize>,
+}
+
 /// Curves drawn at most (more would not be told apart).
 pub const MAX_CURVES: usize = 8;
 
@@ -70,7 +81,12 @@ const PLOT_WIDTH: u32 = 700;
 impl Figure {
     /// The figure as an SVG document. Non-finite points are skipped.
     pub fn svg(&self) -> Result<String, PlotError> {
-        svg_document(SIZE, |root| self.draw(root))
+        self.svg_styled(&Style::default())
+    }
+
+    /// The figure as an SVG document drawn in `style`. Non-finite points are skipped.
+    pub fn svg_styled(&self, style: &Style) -> Result<String, PlotError> {
+        svg_document(SIZE, |root| self.draw(root, style))
     }
 
     /// Whether the x axis is logarithmic: [`Figure::x_log`] and the positive abscissae span
@@ -97,18 +113,33 @@ impl Figure {
         }
     }
 
-    /// The ranges of the finite points (with their error bars), padded; `[0, 1]` when empty.
-    fn ranges(&self, log: bool) -> ((f64, f64), (f64, f64)) {
+    /// The plotted ordinate of `y` and its error bar's ends `(y, low, high)`: on a logarithmic
+    /// axis their `log10`, the low end cut a decade under `y` (NaN for `y <= 0`).
+    fn plotted_y(y: f64, e: f64, log: bool) -> (f64, f64, f64) {
+        if !log {
+            return (y, y - e, y + e);
+        }
+        if y <= 0.0 {
+            return (f64::NAN, f64::NAN, f64::NAN);
+        }
+        let low = if y - e > 0.1 * y { y - e } else { 0.1 * y };
+        (y.log10(), low.log10(), (y + e).log10())
+    }
+
+    /// The ranges of the finite points (with their error bars), padded; `[0, 1]` when empty;
+    /// the y values on a logarithmic axis when `y_log`.
+    fn ranges(&self, log: bool, y_log: bool) -> ((f64, f64), (f64, f64)) {
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for c in self.curves.iter().take(MAX_CURVES) {
             for (i, (&x, &y)) in c.x.iter().zip(&c.y).enumerate() {
                 let e = c.err.get(i).copied().unwrap_or(0.0);
                 let x = Self::plotted(x, log);
-                if !(x.is_finite() && y.is_finite() && e.is_finite()) {
+                let (y, lo, hi) = Self::plotted_y(y, e, y_log);
+                if !(x.is_finite() && y.is_finite() && lo.is_finite() && hi.is_finite()) {
                     continue;
                 }
                 (x0, x1) = (x0.min(x), x1.max(x));
-                (y0, y1) = (y0.min(y - e), y1.max(y + e));
+                (y0, y1) = (y0.min(lo), y1.max(hi));
             }
         }
         let pad = |a: f64, b: f64| {
@@ -129,6 +160,7 @@ impl Figure {
     fn draw(
         &self,
         root: &DrawingArea<SVGBackend<'_>, Shift>,
+        style: &Style,
     ) -> Result<(), Box<dyn std::error::Error + '_>> {
         root.fill(&WHITE)?;
         root.draw(&Text::new(self.title.clone(), (80, 12), font(16.0)))?;
@@ -139,7 +171,8 @@ impl Figure {
         ))?;
         let (plot, legend) = root.split_horizontally(PLOT_WIDTH);
         let log = self.log_axis();
-        let ((x0, x1), (y0, y1)) = self.ranges(log);
+        let y_log = style.y_log;
+        let ((x0, x1), (y0, y1)) = self.ranges(log, y_log);
         let ticks = Ticks::new(self, log, (x0, x1));
         let mut chart = ChartBuilder::on(&plot)
             .margin_top(60)
@@ -149,19 +182,28 @@ impl Figure {
             .x_label_area_size(50)
             .y_label_area_size(80)
             .build_cartesian_2d(x0..x1, y0..y1)?;
-        chart
-            .configure_mesh()
-            .x_desc(ticks.label.clone())
-            .y_desc(self.y_label.clone())
-            .x_label_formatter(&|x| ticks.format(*x))
+        let y_desc = if y_log {
+            format!("{} (log scale)", self.y_label)
+        } else {
+            self.y_label.clone()
+        };
+        let power = |y: &f64| power_label(*y);
+        let x_format = |x: &f64| ticks.format(*x);
+        let mut mesh = chart.configure_mesh();
+        mesh.x_desc(ticks.label.clone())
+            .y_desc(y_desc)
+            .x_label_formatter(&x_format)
             .x_labels(TICKS)
             .y_labels(8)
             .disable_x_mesh()
             .bold_line_style(RGBColor(0xe4, 0xe4, 0xe4))
             .light_line_style(TRANSPARENT)
             .label_style(font(13.0))
-            .axis_desc_style(font(14.0))
-            .draw()?;
+            .axis_desc_style(font(14.0));
+        if y_log {
+            mesh.y_label_formatter(&power);
+        }
+        mesh.draw()?;
         chart
             .plotting_area()
             .draw(&Rectangle::new([(x0, y0), (x1, y1)], BLACK.stroke_width(1)))?;
@@ -169,29 +211,42 @@ impl Figure {
         let mut y = 80;
         for (i, c) in self.curves.iter().take(MAX_CURVES).enumerate() {
             let colour = COLOURS[i % COLOURS.len()];
-            let points: Vec<(f64, f64, f64)> =
+            let points: Vec<(f64, f64, f64, f64)> =
                 c.x.iter()
                     .zip(&c.y)
                     .enumerate()
                     .map(|(k, (&x, &y))| {
                         let e = c.err.get(k).copied().unwrap_or(0.0);
-                        (Self::plotted(x, log), y, e)
+                        let (y, lo, hi) = Self::plotted_y(y, e, y_log);
+                        (Self::plotted(x, log), y, lo, hi)
                     })
-                    .filter(|(x, y, e)| x.is_finite() && y.is_finite() && e.is_finite())
+                    .filter(|p| [p.0, p.1, p.2, p.3].iter().all(|v| v.is_finite()))
                     .collect();
-            chart.draw_series(LineSeries::new(
-                points.iter().map(|&(x, y, _)| (x, y)),
-                colour.stroke_width(2),
-            ))?;
+            let dashed = style.dashed.contains(&i);
+            let line = points.iter().map(|&(x, y, _, _)| (x, y));
+            if dashed {
+                chart.draw_series(DashedLineSeries::new(line, 8, 5, colour.stroke_width(2)))?;
+            } else {
+                chart.draw_series(LineSeries::new(line, colour.stroke_width(2)))?;
+            }
             if !c.err.is_empty() {
-                chart.draw_series(points.iter().map(|&(x, y, e)| {
-                    ErrorBar::new_vertical(x, y - e, y, y + e, colour.stroke_width(1), 5)
+                chart.draw_series(points.iter().map(|&(x, y, lo, hi)| {
+                    ErrorBar::new_vertical(x, lo, y, hi, colour.stroke_width(1), 5)
                 }))?;
             }
-            legend.draw(&PathElement::new(
-                vec![(5, y), (35, y)],
-                colour.stroke_width(2),
-            ))?;
+            if dashed {
+                for (a, b) in [(5, 14), (21, 30)] {
+                    legend.draw(&PathElement::new(
+                        vec![(a, y), (b, y)],
+                        colour.stroke_width(2),
+                    ))?;
+                }
+            } else {
+                legend.draw(&PathElement::new(
+                    vec![(5, y), (35, y)],
+                    colour.stroke_width(2),
+                ))?;
+            }
             legend.draw(&Text::new(c.label.clone(), (43, y), text.clone()))?;
             y += 22;
         }
@@ -246,6 +301,26 @@ fn prefix(m: f64) -> (&'static str, i32) {
         .find(|p| p.1 == e)
         .copied()
         .unwrap_or(("", 0))
+}
+
+/// The tick label of `10^v` on a logarithmic y axis, two significant digits (`0.032`, `1e-5`).
+fn power_label(v: f64) -> String {
+    let x = 10f64.powf(v);
+    if (1e-3..1e4).contains(&x) {
+        let digits = (1.0 - x.log10().floor()).max(0.0) as usize;
+        let text = format!("{x:.digits$}");
+        if text.contains('.') {
+            text.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            text
+        }
+    } else {
+        let text = format!("{x:.1e}");
+        match text.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.')),
+            None => text,
+        }
+    }
 }
 
 /// `v` with three significant digits and an SI prefix on `base` (`31.6 us`).
@@ -404,7 +479,7 @@ mod tests {
         // Linear, in us: the axis names the prefix, ticks are numbers in it.
         let f = figure(vec![0.0, 1e-5, 2e-5], seconds(), true);
         assert!(!f.log_axis());
-        let (x0, x1) = f.ranges(false).0;
+        let (x0, x1) = f.ranges(false, false).0;
         let t = Ticks::new(&f, false, (x0, x1));
         assert_eq!(t.label, "lag t (us)");
         assert_eq!(t.format(1.5e-5), "15.0");
@@ -412,7 +487,7 @@ mod tests {
         // Logarithmic over three decades, ticks with prefixes.
         let f = figure(vec![0.0, 1e-7, 1e-6, 1e-4], seconds(), true);
         assert!(f.log_axis());
-        let t = Ticks::new(&f, true, f.ranges(true).0);
+        let t = Ticks::new(&f, true, f.ranges(true, false).0);
         assert_eq!(t.label, "lag t (log scale)");
         assert_eq!(t.format(-6.5), "316 ns");
         // Not with x_log off; a described unit is scaled by a stated power of ten.
@@ -422,8 +497,45 @@ mod tests {
             false,
         );
         assert!(!f.log_axis());
-        let t = Ticks::new(&f, false, f.ranges(false).0);
+        let t = Ticks::new(&f, false, f.ranges(false, false).0);
         assert_eq!(t.label, "lag t (1e-6 x the scene's time unit)");
         assert_eq!(t.format(5e-5), "50.0");
+    }
+
+    #[test]
+    fn a_log_y_axis_labels_powers_and_draws_dashed_curves() {
+        assert_eq!(power_label(-2.0), "0.01");
+        assert_eq!(power_label(-1.5), "0.032");
+        assert_eq!(power_label(0.0), "1");
+        assert_eq!(power_label(-5.0), "1e-5");
+        let curve = |label: &str, y: Vec<f64>, err: Vec<f64>| Curve {
+            label: label.into(),
+            x: vec![1.0, 2.0, 3.0],
+            y,
+            err,
+        };
+        let f = Figure {
+            title: "mean".into(),
+            subtitle: String::new(),
+            x_label: "d".into(),
+            x_unit: None,
+            x_log: false,
+            y_label: "|m|".into(),
+            curves: vec![
+                curve("a", vec![1.0, 0.1, 0.001], vec![]),
+                curve("b", vec![1.0, 0.1, 0.0], vec![0.5, 0.2, 0.1]),
+            ],
+        };
+        // The second curve's bar below zero is cut a decade under its point; its zero is left out.
+        let (_, (y0, y1)) = f.ranges(false, true);
+        assert!(y0 < -3.0 && y0 > -3.5 && y1 > 0.17 && y1 < 0.4, "{y0} {y1}");
+        let style = Style {
+            y_log: true,
+            dashed: vec![0],
+        };
+        let svg = f.svg_styled(&style).unwrap();
+        assert!(svg.contains("|m| (log scale)"));
+        assert!(!svg.contains("NaN"));
+        assert_ne!(svg, f.svg().unwrap());
     }
 }

@@ -15,6 +15,7 @@ pub mod g1;
 pub mod intensity;
 pub mod map;
 pub mod mean;
+pub mod mean_plot;
 pub mod memory_images;
 pub mod memory_spectrum;
 pub mod memory_tilt;

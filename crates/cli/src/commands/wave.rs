@@ -33,6 +33,12 @@ pub struct Args {
     /// wavelength).
     #[arg(long, value_name = "DZ", requires = "multislice")]
     slice: Option<f64>,
+    /// Also plot the speckle mean against the source-sensor distance (Bar et al. 2019, Fig.
+    /// 4): the closed form (Eq. 20), the solver's mean with its standard error and the
+    /// free-space field, as `<name>.mean_plot.svg`, `.mean_*.npy` and `.mean_plot.json`.
+    /// Every pair must join a point source to a point sensor.
+    #[arg(long, conflicts_with_all = ["multislice", "shard"])]
+    mean_plot: bool,
 }
 
 /// Which solver produced an estimate, for its file names and sidecar.
@@ -55,6 +61,18 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.multislice {
         return super::wave_multislice::run(&p, &scene, run, a.slice);
     }
+    let distances = if a.mean_plot {
+        if p.motion.is_some() {
+            return Err(input(format!(
+                "{}: motion: --mean-plot plots the mean of static scatterers; leave out \
+                 [motion] or the flag",
+                p.origin
+            )));
+        }
+        Some(super::mean_plot::distances(&p)?)
+    } else {
+        None
+    };
     if p.motion.is_some() {
         return super::wave_motion::run(&p, &scene, run);
     }
@@ -97,6 +115,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (est, wall) = run.timed(&p, rr as u64, "configurations", wave_error, |pr| {
         render_wave(&scene, &opts, pr)
     })?;
+    let mut staged = staged;
+    if let Some(d) = distances {
+        let closed = means(&p, &speckle::estimators::NoProgress).map_err(error::estimator)?;
+        super::mean_plot::stage(&p, &mut staged, &est, &closed, &d)?;
+    }
     write(&p, staged, &est, wall)
 }
 
