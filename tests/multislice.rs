@@ -40,45 +40,18 @@
 //! Runs in about 5 s in the `ci` profile on 2 cores (`cargo test --profile ci --test
 //! multislice -- --nocapture` prints every comparison).
 
-use speckle::estimators::{NoProgress, Pair, Scene, Sensor, Source};
-use speckle::medium::{Aabb, DVec3, HomogeneousBox};
-use speckle::phase::{Complex64, Phase};
+mod common_slab;
+
+use common_slab::{WaveScene, slab};
+use speckle::estimators::{NoProgress, Sensor};
+use speckle::medium::DVec3;
+use speckle::phase::Complex64;
 use speckle::stats::PathRng;
 use speckle::wave::{
     MultisliceOptions, WaveOptions, multislice_solve, render_multislice, render_wave,
     sample_scatterers, solve,
 };
 use std::f64::consts::{FRAC_PI_4, PI};
-
-type WaveScene = Scene<HomogeneousBox, Phase>;
-
-/// A flatland slab `width x depth` (wavelength 1) lit along +y, far-field sensors at `degrees`
-/// from +y (towards +x).
-fn slab(width: f64, depth: f64, mean_free_path: f64, degrees: &[f64]) -> WaveScene {
-    let b = Aabb::flat(
-        glam::DVec2::new(-0.5 * width, -0.5 * depth),
-        glam::DVec2::new(0.5 * width, 0.5 * depth),
-    )
-    .unwrap();
-    let m = HomogeneousBox::from_mean_free_path(b, mean_free_path, 1.0).unwrap();
-    let sensors: Vec<Sensor> = degrees
-        .iter()
-        .map(|d| {
-            let (s, c) = d.to_radians().sin_cos();
-            Sensor::far_field(DVec3::new(s, c, 0.0)).unwrap()
-        })
-        .collect();
-    let n = sensors.len();
-    Scene::new(
-        m,
-        Phase::FlatIsotropic,
-        1.0,
-        vec![Source::plane_wave(DVec3::Y).unwrap()],
-        sensors,
-        Pair::all(1, n),
-    )
-    .unwrap()
-}
 
 /// `|a - b| / sqrt(sa^2 + sb^2)` for real and imaginary parts, the larger.
 fn z(a: Complex64, sa: Complex64, b: Complex64, sb: Complex64) -> f64 {

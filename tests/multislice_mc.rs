@@ -50,45 +50,16 @@
 //! `docs/experiments-2020.md` ("Multi-slice on a slab of thousands of wavelengths") has the
 //! heavy cases' numbers.
 
+mod common_slab;
+
+use common_slab::slab;
 use speckle::estimators::{
-    Coherence, CovarianceEstimate, CovarianceOptions, NoProgress, Pair, Scene, Sensor, Source,
-    render_intensity_with,
+    Coherence, CovarianceEstimate, CovarianceOptions, NoProgress, render_intensity_with,
 };
-use speckle::medium::{Aabb, DVec3, HomogeneousBox};
+use speckle::medium::DVec3;
 use speckle::paths::{NoFactor, PathFactor, Vertex};
-use speckle::phase::Phase;
 use speckle::wave::{MultisliceOptions, render_multislice};
 use std::time::Instant;
-
-type WaveScene = Scene<HomogeneousBox, Phase>;
-
-/// A flatland slab `width x depth` (wavelength 1) lit along +y, far-field sensors at `degrees`
-/// from +y (towards +x).
-fn slab(width: f64, depth: f64, mean_free_path: f64, degrees: &[f64]) -> WaveScene {
-    let b = Aabb::flat(
-        glam::DVec2::new(-0.5 * width, -0.5 * depth),
-        glam::DVec2::new(0.5 * width, 0.5 * depth),
-    )
-    .unwrap();
-    let m = HomogeneousBox::from_mean_free_path(b, mean_free_path, 1.0).unwrap();
-    let sensors: Vec<Sensor> = degrees
-        .iter()
-        .map(|d| {
-            let (s, c) = d.to_radians().sin_cos();
-            Sensor::far_field(DVec3::new(s, c, 0.0)).unwrap()
-        })
-        .collect();
-    let n = sensors.len();
-    Scene::new(
-        m,
-        Phase::FlatIsotropic,
-        1.0,
-        vec![Source::plane_wave(DVec3::Y).unwrap()],
-        sensors,
-        Pair::all(1, n),
-    )
-    .unwrap()
-}
 
 /// Zeroes a path once a flight travels against the incident direction `+y` and, with an
 /// aperture `(pass, cut)` (radians from `+y`), weights every flight by the square of

@@ -14,8 +14,8 @@ use crate::schema::{GridKind, MaterialSpec, MediumSpec, ParticleSpec, PhaseSpec,
 use crate::validate::{invalid, non_negative, position, positive};
 use serde::Serialize;
 use speckle_medium::{
-    Aabb, AnyMedium, Concentration, Dimension, HomogeneousBox, Material, MediumError, ParticleMix,
-    ParticleType, Tracking, TypeMix, VoxelGrid,
+    Aabb, AnyMedium, Concentration, Dimension, HomogeneousBox, MAX_DELTA_COLLISIONS, Material,
+    MediumError, ParticleMix, ParticleType, Tracking, TypeMix, VoxelGrid,
 };
 use speckle_phase::{Complex64, MieSphere, Phase, PhaseFunction};
 use std::path::Path;
@@ -298,6 +298,19 @@ pub fn build_medium(
             TrackingSpec::Local => Tracking::Local,
             TrackingSpec::Regular => Tracking::Regular,
         };
+        // One majorant across a grid of extreme contrast would take that many null collisions
+        // per flight (a hang): the default tracks regularly there, an explicit choice is refused.
+        let collisions = grid.majorant() * speckle_medium::Medium::bounds(grid).size().length();
+        if tracking == Tracking::Delta && collisions > MAX_DELTA_COLLISIONS {
+            return Err(invalid(
+                "medium.tracking",
+                format!(
+                    "delta tracking against the largest extinction would take about {collisions:.1e} \
+                     null collisions across the box (at most {MAX_DELTA_COLLISIONS:.0e}): use \
+                     \"local\" or \"regular\""
+                ),
+            ));
+        }
         *grid = grid.clone().with_tracking(tracking);
     }
     Ok(built)
@@ -592,6 +605,19 @@ mod tests {
         assert_eq!(tracking(""), Tracking::Delta);
         assert_eq!(tracking("tracking = \"regular\""), Tracking::Regular);
         assert_eq!(tracking("tracking = \"local\""), Tracking::Local);
+        // An extreme layer: the default tracks regularly, an explicit delta is refused.
+        let extreme = |extra: &str| {
+            let text = format!(
+                "size = [4.0, 4.0, 4.0]\nlayers = [0.25, 3.75]\n{extra}\n[[materials]]\n\
+                 sigma_s = 1e9\n[[materials]]\nsigma_s = 1.0\n"
+            );
+            let m: MediumSpec = toml::from_str(&text).unwrap();
+            build_medium(&m, None, files, 1.0, Dimension::Three)
+        };
+        assert!(extreme("").is_ok());
+        let e = extreme("tracking = \"delta\"").unwrap_err().to_string();
+        assert!(e.starts_with("medium.tracking: delta tracking"), "{e}");
+        assert!(extreme("tracking = \"local\"").is_ok());
         // A thin dense layer over a sparse one: local majorants pay.
         let AnyMedium::Grid(g) = build("").unwrap().medium else {
             panic!()
