@@ -44,7 +44,7 @@
 //! seed = 1
 //! ```
 
-use super::study::{StudyOutput, StudyOverrides, parse};
+use super::study::{StudyOutput, StudyOverrides};
 use super::{Array, slab_tracer_json};
 use crate::StudyError;
 use crate::seeing::retrieval::normalised_cross_correlation;
@@ -53,7 +53,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 use speckle_estimators::{Coherence, Progress};
 use speckle_scene::validate::invalid as bad;
-use speckle_scene::{LoadError, SceneError, load};
+use speckle_scene::{LoadError, SceneError};
 use speckle_stats::rng::derive_seed;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -124,8 +124,7 @@ pub fn load_memory_images_file(
     path: &Path,
     overrides: &StudyOverrides,
 ) -> Result<MemoryImagesStudy, LoadError> {
-    let (text, stem) = load::read_input(path, "study")?;
-    load_memory_images_str(&text, &path.display().to_string(), &stem, overrides)
+    super::study::load_study_file(path, overrides, load_memory_images_str)
 }
 
 /// Loads and validates a memory-images study from its text (`origin` names it in errors;
@@ -136,15 +135,14 @@ pub fn load_memory_images_str(
     default_name: &str,
     overrides: &StudyOverrides,
 ) -> Result<MemoryImagesStudy, LoadError> {
-    let mut file: MemoryImagesFile = parse(text).map_err(|e| e.in_document(origin))?;
-    overrides
-        .apply_to(
-            &mut file.render.paths,
-            &mut file.render.seed,
-            &mut file.output,
-        )
-        .map_err(|e| e.in_document(origin))?;
-    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+    super::study::load_study(
+        text,
+        origin,
+        default_name,
+        overrides,
+        |f: &mut MemoryImagesFile| (&mut f.render.paths, &mut f.render.seed, &mut f.output),
+        validate,
+    )
 }
 
 impl MemoryImagesFile {

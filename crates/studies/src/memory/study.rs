@@ -248,6 +248,35 @@ pub(crate) fn parse<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Loa
     )
 }
 
+/// A study of its own format from its text: parsed as `F`, the command line's overrides applied
+/// to the `(paths or samples, seed, output)` that `fields` picks, then `validate`d (with
+/// `origin` and `default_name`); every error names `origin`.
+pub(crate) fn load_study<F: serde::de::DeserializeOwned, S>(
+    text: &str,
+    origin: &str,
+    default_name: &str,
+    overrides: &StudyOverrides,
+    fields: impl FnOnce(&mut F) -> (&mut u64, &mut u64, &mut StudyOutput),
+    validate: impl FnOnce(F, &str, &str) -> Result<S, SceneError>,
+) -> Result<S, LoadError> {
+    let mut file: F = parse(text).map_err(|e| e.in_document(origin))?;
+    let (paths, seed, output) = fields(&mut file);
+    overrides
+        .apply_to(paths, seed, output)
+        .map_err(|e| e.in_document(origin))?;
+    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+}
+
+/// A study read from `path` (its stem the default output prefix) by `load_str`.
+pub(crate) fn load_study_file<S>(
+    path: &Path,
+    overrides: &StudyOverrides,
+    load_str: impl FnOnce(&str, &str, &str, &StudyOverrides) -> Result<S, LoadError>,
+) -> Result<S, LoadError> {
+    let (text, stem) = load::read_input(path, "study")?;
+    load_str(&text, &path.display().to_string(), &stem, overrides)
+}
+
 /// Loads and validates a study file.
 pub fn load_file(path: &Path, overrides: &StudyOverrides) -> Result<Study, LoadError> {
     let (text, stem) = load::read_input(path, "study")?;

@@ -54,7 +54,7 @@ pub use study::{
 use crate::memory::{StudyOutput, StudyOverrides};
 use serde::{Deserialize, Serialize};
 use speckle_scene::validate::{invalid as bad, positive};
-use speckle_scene::{LoadError, SceneError, load};
+use speckle_scene::{LoadError, SceneError};
 use std::path::Path;
 
 /// Most viewing directions.
@@ -129,8 +129,7 @@ pub fn load_permutations_file(
     path: &Path,
     overrides: &StudyOverrides,
 ) -> Result<PermutationsStudy, LoadError> {
-    let (text, stem) = load::read_input(path, "study")?;
-    load_permutations_str(&text, &path.display().to_string(), &stem, overrides)
+    crate::memory::study::load_study_file(path, overrides, load_permutations_str)
 }
 
 /// Loads and validates a study from its text (`origin` names it in errors; `default_name` is
@@ -141,16 +140,14 @@ pub fn load_permutations_str(
     default_name: &str,
     overrides: &StudyOverrides,
 ) -> Result<PermutationsStudy, LoadError> {
-    let mut file: PermutationsFile =
-        crate::memory::study::parse(text).map_err(|e| e.in_document(origin))?;
-    overrides
-        .apply_to(
-            &mut file.render.samples,
-            &mut file.render.seed,
-            &mut file.output,
-        )
-        .map_err(|e| e.in_document(origin))?;
-    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+    crate::memory::study::load_study(
+        text,
+        origin,
+        default_name,
+        overrides,
+        |f: &mut PermutationsFile| (&mut f.render.samples, &mut f.render.seed, &mut f.output),
+        validate,
+    )
 }
 
 fn validate(

@@ -62,7 +62,7 @@ pub(crate) use render::{add, sampled_patterns};
 use crate::memory::{StudyOutput, StudyOverrides};
 use serde::{Deserialize, Serialize};
 use speckle_scene::validate::{invalid as bad, positive};
-use speckle_scene::{LoadError, SceneError, load};
+use speckle_scene::{LoadError, SceneError};
 use std::path::Path;
 
 /// Most cases (`g` values) of a study.
@@ -338,8 +338,7 @@ pub struct SeeingStudy {
 
 /// Loads and validates a study file.
 pub fn load_seeing_file(path: &Path, overrides: &StudyOverrides) -> Result<SeeingStudy, LoadError> {
-    let (text, stem) = load::read_input(path, "study")?;
-    load_seeing_str(&text, &path.display().to_string(), &stem, overrides)
+    crate::memory::study::load_study_file(path, overrides, load_seeing_str)
 }
 
 /// Loads and validates a study from its text (`origin` names it in errors; `default_name` is
@@ -350,16 +349,14 @@ pub fn load_seeing_str(
     default_name: &str,
     overrides: &StudyOverrides,
 ) -> Result<SeeingStudy, LoadError> {
-    let mut file: SeeingFile =
-        crate::memory::study::parse(text).map_err(|e| e.in_document(origin))?;
-    overrides
-        .apply_to(
-            &mut file.render.paths,
-            &mut file.render.seed,
-            &mut file.output,
-        )
-        .map_err(|e| e.in_document(origin))?;
-    validate(file, origin, default_name).map_err(|e| LoadError::from(e).in_document(origin))
+    crate::memory::study::load_study(
+        text,
+        origin,
+        default_name,
+        overrides,
+        |f: &mut SeeingFile| (&mut f.render.paths, &mut f.render.seed, &mut f.output),
+        validate,
+    )
 }
 
 fn validate(file: SeeingFile, origin: &str, default_name: &str) -> Result<SeeingStudy, SceneError> {
