@@ -18,7 +18,7 @@
 //! exp(i k 2 sin(theta/2) x)` for plane waves `exp(i k d.x)`). The focus displacement is
 //! `Delta_a = Delta`. Its mean is the complex conjugate of the tilt-shift correlation of Eq. 49,
 //! `E A = conj(C(Delta_a, Delta_b, theta))`, a sum of covariance entries; the study works with
-//! `C` (the same power). The rendered fields themselves (Fig. 13 top): `refocus_images.rs`.
+//! `C` (the same power). The rendered fields themselves (Fig. 13 top): `refocus_images/`.
 //!
 //! What is computed: the power of the focus, `|E A|^2`, normalised by its value at `Delta = 0`,
 //! where `E A(0) = sum_m E|u_i(tau_m)|^2` is real and positive (the total mean intensity on the
@@ -27,7 +27,7 @@
 //! grains the camera spans while the focus grows as `N^2`; the normalised power of the focus is
 //! the paper's "expected power at focus points" in the limit of a large camera (the enhancement
 //! of phase conjugation is of order `N`). The background (a fourth moment) is measured on the
-//! rendered fields of the `[images]` section (`refocus_images.rs`), against its Gaussian value.
+//! rendered fields of the `[images]` section (`refocus_images/`), against its Gaussian value.
 //!
 //! The two variants, for every `Delta` (the shift `Delta_b` of the pattern on face `b` and the
 //! tilt `theta` are tied by the Dirac delta of Eq. 50, `Delta_b = Delta_a + L theta`):
