@@ -18,6 +18,10 @@
 //! (below [`PowerSums::TINY`] the rest are zero), which keeps subnormal numbers out of the
 //! loops.
 //!
+//! Lags that are multiples of the step only to within their rounding (a grid written to seven
+//! digits) are interpolated between the sums at two steps ([`Powers`]), or, in the slot sums of
+//! diagonal entries, taken lag by lag with each distinct gap's multiplier ([`SlotSums`]).
+//!
 //! The loops are compiled for the instruction sets the CPU has (AVX-512, AVX2, detected at run
 //! time through `pulp`); they use no fused multiply-adds, so every instruction set gives bitwise
 //! the same sums.

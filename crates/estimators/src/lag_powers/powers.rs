@@ -11,7 +11,10 @@
 /// `|t_l| = m_l delta (1 + eps_l)`, `|eps_l| <=` [`Powers::ROUNDING`]. Their factor
 /// `exp(-x m_l (1 + eps_l))` is then interpolated, linearly in `eps`, between the powers at the
 /// step (`s = 0`) and at the step stretched by `1 + eta` (`s = eta`, the largest `|eps_l|` with
-/// its sign): two sums of powers, weighted `1 - eps_l / eta` and `eps_l / eta` at each lag. The
+/// its sign): two sums of powers, weighted `1 - eps_l / eta` and `eps_l / eta` at each lag.
+/// (The chunked powers, [`super::PowerSums`], do so; the slot sums of diagonal entries,
+/// [`super::SlotSums`], take each lag's gap from the one before as its own multiplier instead,
+/// exact to rounding, and interpolate only where a grid has many distinct gaps.) The
 /// interpolation's error is at most `(x m)^2 e^{-x m} |eps (eps - eta)| / 2 <= 0.54 eta^2`
 /// relative to the term's weight: below `2e-13` for seven significant digits (`eta` up to about
 /// `6e-7`, the step itself being a rounded lag) and `6e-11` at the largest rounding accepted.

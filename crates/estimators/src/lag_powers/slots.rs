@@ -24,14 +24,41 @@ use speckle_stats::BatchSum;
 /// within the lags goes through a scalar loop of the same products that stops below
 /// [`PowerSums::TINY`].
 ///
+/// Lags that are whole multiples only to within their rounding ([`Powers::eta`] non-zero)
+/// keep the same chain: the gap between two lags is `s_k = |t_k| / delta - |t_(k-1)| / delta =
+/// n_k + d_k` steps, `n_k` whole and `d_k = m_k eps_k - m_(k-1) eps_(k-1)` a few millionths at
+/// seven digits, and its multiplier `r^(n_k) exp(-x d_k)` is formed once per term and
+/// *distinct* gap ([`Gap::Real`]; a grid of `i 2 / 63` written to seven digits has five, one
+/// of them whole), the second factor by its Taylor polynomial (degrees 2 to 4 there,
+/// [`Self::degree`]). So the lags cost what a regular grid's do, and each lag's power is its
+/// own `exp(-x |t_k| / delta)` to the products' rounding: no interpolation. Gaps within
+/// [`Self::SAME`] (times the largest step count) of each other share one multiplier (the
+/// floating-point differences of rounded lags differ in their last bits): a lag's exponent is
+/// then off by at most `k` times that, at most `0.37` times it relative to the term's weight
+/// (`1.2e-13` for 64 steps). A rounded grid with more than [`Self::MAX_REAL`] distinct gaps
+/// (a multi-tau grid written to a few digits) interpolates instead, as [`PowerSums`] does,
+/// between the sums at the step and at the step stretched by the largest rounding.
+///
 /// Like [`PowerSums`], the loops are compiled for the instruction sets the CPU has and use no
 /// fused multiply-adds: every instruction set gives bitwise the same sums.
 pub(crate) struct SlotSums {
     /// The lags' indices `l` in the order of the sums.
     lags: Vec<usize>,
-    /// The gaps between their step counts `m_l` (increasing), `m_k - m_(k-1)` (`m_(-1) = 0`;
-    /// zero between lags of equal `|t|`).
+    /// The gap of each lag from the one before it (in the order of the sums): an index into
+    /// `kinds`, or [`NO_GAP`] between lags of equal `|t|`.
     gaps: Vec<usize>,
+    /// The distinct gaps, in the order the lags first take them.
+    kinds: Vec<Gap>,
+    /// Scratch: the multipliers of the distinct gaps of the terms being added, `[c S + s]`
+    /// for gap `c` and slot `s` of `S`; those of one term alone (a term whose powers
+    /// underflow); and powers on their way.
+    mult: Vec<f64>,
+    one: Vec<f64>,
+    scratch: Vec<f64>,
+    /// The degree of the Taylor polynomial of each of `kinds` ([`Self::degree`]; `None` for
+    /// whole gaps), and none (exponentials: a term whose powers underflow).
+    degrees: Vec<Option<usize>>,
+    exact: Vec<Option<usize>>,
     /// Term combinations per entry (`P`), and entries.
     per_entry: usize,
     entries: usize,
@@ -63,32 +90,186 @@ pub(crate) struct SlotSums {
     twin: Option<(Box<SlotSums>, f64)>,
 }
 
-/// The multiplier of the next gap: `r^gap` from the current multiplier `g = r^cur`, by
-/// squaring, from `g` where `gap` is a multiple of `cur` (lane by lane, in the same products
-/// as [`super::kernels::whole_power`]).
-#[inline(always)]
-fn next_multiplier<const N: usize>(g: &mut [f64; N], r: &[f64; N], cur: usize, gap: usize) {
-    let (base, n) = if gap.is_multiple_of(cur) {
-        (*g, gap / cur)
-    } else {
-        (*r, gap)
-    };
-    let (mut acc, mut sq, mut n) = ([1.0; N], base, n);
-    while n > 0 {
-        if n & 1 == 1 {
-            for (a, s) in acc.iter_mut().zip(&sq) {
-                *a *= s;
+/// The gap of a lag from the one before it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Gap {
+    /// `n` whole steps: multiplier `r^n`, by squaring.
+    Whole(usize),
+    /// `n + d` steps of a rounded grid (`|d|` small): multiplier `r^n exp(-x d)`, the second
+    /// factor by its Taylor polynomial ([`SlotSums::degree`]).
+    Real(usize, f64),
+}
+
+/// Where a lag has no gap from the one before it (equal `|t|`).
+const NO_GAP: usize = usize::MAX;
+
+/// The gaps of the lags of `p` in the order of the sums (indices into the distinct gaps, or
+/// [`NO_GAP`]) and the distinct gaps; `None` for a rounded grid whose gaps are not all
+/// positive or more than [`SlotSums::MAX_REAL`] distinct ones.
+pub(super) fn gaps_of(p: &Powers) -> Option<(Vec<usize>, Vec<Gap>)> {
+    let (_, steps) = p.lags_and_steps();
+    let most = steps.last().copied().unwrap_or(1).max(1) as f64;
+    let same = SlotSums::SAME * most;
+    let (mut kinds, mut gaps) = (Vec::new(), Vec::with_capacity(steps.len()));
+    let (mut prev, mut prev_u) = (0, 0.0);
+    for (k, &m) in steps.iter().enumerate() {
+        let n = m - prev;
+        prev = m;
+        let gap = if p.eta == 0.0 {
+            (n != 0).then_some(Gap::Whole(n))
+        } else {
+            // `|t_k| / delta = m_k + u_k`, `u_k = m_k eps_k`.
+            let u = m as f64 * p.rounding[k];
+            let d = u - prev_u;
+            prev_u = u;
+            let s = n as f64 + d;
+            if s < -same {
+                return None;
             }
-        }
-        n >>= 1;
-        if n > 0 {
-            for s in sq.iter_mut() {
-                *s *= *s;
+            // (A gap of whole steps, the lags either side exact, is a whole gap.)
+            (s > same).then_some(if d == 0.0 {
+                Gap::Whole(n)
+            } else {
+                Gap::Real(n, d)
+            })
+        };
+        let at = gap.map_or(NO_GAP, |g| {
+            let found = kinds.iter().position(|&h| match (h, g) {
+                (Gap::Real(m, a), Gap::Real(n, b)) => m == n && (a - b).abs() <= same,
+                _ => h == g,
+            });
+            found.unwrap_or_else(|| {
+                kinds.push(g);
+                kinds.len() - 1
+            })
+        });
+        gaps.push(at);
+    }
+    (p.eta == 0.0 || kinds.len() <= SlotSums::MAX_REAL).then_some((gaps, kinds))
+}
+
+/// The multipliers of the distinct gaps `kinds` of terms of bases `r = exp(-x)`, element by
+/// element, gap `c`'s into `out[c n..][..n]` (`n` terms): a whole gap `r^n` by squaring
+/// ([`super::kernels::whole_power`]'s products), from the previous whole gap's multiplier
+/// where `n` is a multiple of it (once per level of a multi-tau grid); a rounded one
+/// `r^n exp(-x d)`, the second factor by its Taylor polynomial of degree `degrees[c]`
+/// (accurate for the terms whose `x d` it was chosen for, [`SlotSums::degree`]) or, where that
+/// is `None`, as an exponential. Each loop goes over every term at once, so that it
+/// vectorises.
+#[inline(always)]
+fn gap_multipliers(
+    kinds: &[Gap],
+    r: &[f64],
+    x: &[f64],
+    out: &mut [f64],
+    degrees: &[Option<usize>],
+    scratch: &mut Vec<f64>,
+) {
+    let n = r.len();
+    scratch.resize(2 * n, 0.0);
+    let (pw, sq) = scratch.split_at_mut(n);
+    // The previous whole gap (its multiplier's place) and its steps.
+    let (mut prev, mut cur) = (None, 1);
+    for (c, &kind) in kinds.iter().enumerate() {
+        let (done, rest) = out.split_at_mut(c * n);
+        let o = &mut rest[..n];
+        match kind {
+            Gap::Whole(gap) => {
+                let (base, k) = match prev {
+                    Some(p) if gap.is_multiple_of(cur) => (&done[p * n..][..n], gap / cur),
+                    _ => (r, gap),
+                };
+                powers_into(o, base, k, sq);
+                (prev, cur) = (Some(c), gap);
+            }
+            Gap::Real(k, d) => {
+                let pw = if k == 1 {
+                    r
+                } else {
+                    powers_into(pw, r, k, sq);
+                    &*pw
+                };
+                match degrees[c] {
+                    Some(1) => taylor::<1>(o, x, pw, d),
+                    Some(2) => taylor::<2>(o, x, pw, d),
+                    Some(3) => taylor::<3>(o, x, pw, d),
+                    Some(4) => taylor::<4>(o, x, pw, d),
+                    Some(5) => taylor::<5>(o, x, pw, d),
+                    Some(6) => taylor::<6>(o, x, pw, d),
+                    Some(7) => taylor::<7>(o, x, pw, d),
+                    Some(8) => taylor::<8>(o, x, pw, d),
+                    Some(_) => taylor::<9>(o, x, pw, d),
+                    None => {
+                        for ((o, x), p) in o.iter_mut().zip(x).zip(pw) {
+                            *o = (-x * d).exp() * p;
+                        }
+                    }
+                }
             }
         }
     }
-    *g = acc;
 }
+
+/// `o = p exp(-x d)` element by element, the exponential by its Taylor polynomial of degree
+/// `D` (Horner's rule from the top coefficient `1 / D!`), one loop over the elements.
+#[inline(always)]
+fn taylor<const D: usize>(o: &mut [f64], x: &[f64], p: &[f64], d: f64) {
+    for ((o, x), p) in o.iter_mut().zip(x).zip(p) {
+        let u = -d * x;
+        let mut t = INV_FACT[D];
+        for a in INV_FACT[..D].iter().rev() {
+            t = t * u + a;
+        }
+        *o = t * p;
+    }
+}
+
+/// `o = base^k` element by element, in the products of [`super::kernels::whole_power`] (`sq`
+/// scratch), with the loops over the elements inside the loop over the bits of `k`, so that
+/// they vectorise.
+#[inline(always)]
+fn powers_into(o: &mut [f64], base: &[f64], k: usize, sq: &mut [f64]) {
+    match k {
+        1 => o.copy_from_slice(base),
+        2 => {
+            for (o, b) in o.iter_mut().zip(base) {
+                *o = b * b;
+            }
+        }
+        _ => {
+            o.fill(1.0);
+            sq.copy_from_slice(base);
+            let mut n = k;
+            while n > 0 {
+                if n & 1 == 1 {
+                    for (o, s) in o.iter_mut().zip(&*sq) {
+                        *o *= s;
+                    }
+                }
+                n >>= 1;
+                if n > 0 {
+                    for s in sq.iter_mut() {
+                        *s *= *s;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `1 / k!` for the Taylor polynomials of [`gap_multipliers`].
+const INV_FACT: [f64; 10] = [
+    1.0,
+    1.0,
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5_040.0,
+    1.0 / 40_320.0,
+    1.0 / 362_880.0,
+];
 
 impl SlotSums {
     /// Fewer entries than this take [`PowerSums`]: its cost per term is about that of a
@@ -99,31 +280,58 @@ impl SlotSums {
     /// instruction sets; the arithmetic is the same lane by lane).
     const LANES: usize = 8;
 
+    /// Gaps of a rounded grid within this many steps, times the largest step count, share
+    /// one multiplier.
+    const SAME: f64 = 8.0 * f64::EPSILON;
+
+    /// The most distinct gaps of a rounded grid taken lag by lag (a multiplier per term each);
+    /// beyond, the sums at two steps are interpolated.
+    const MAX_REAL: usize = 16;
+
     /// Empty sums of `entries` entries of `per_entry` (1 to 4) term combinations each at the
     /// lags of `p`.
     pub fn new(p: &Powers, entries: usize, per_entry: usize) -> Self {
-        let mut sums = Self::at_step(p, entries, per_entry, p.weights(false));
-        if p.eta != 0.0 && sums.few.is_none() {
-            let twin = Self::at_step(p, entries, per_entry, p.weights(true));
+        if let Some(gaps) = gaps_of(p) {
+            let n = p.order.len();
+            return Self::at_step(p, entries, per_entry, vec![1.0; n], gaps);
+        }
+        // A rounded grid of many distinct gaps: its whole steps, interpolated.
+        let whole = Powers {
+            eta: 0.0,
+            rounding: vec![0.0; p.order.len()],
+            ..p.clone()
+        };
+        let gaps = gaps_of(&whole).expect("whole steps");
+        let mut sums = Self::at_step(p, entries, per_entry, p.weights(false), gaps.clone());
+        if sums.few.is_none() {
+            let twin = Self::at_step(p, entries, per_entry, p.weights(true), gaps);
             sums.twin = Some((Box::new(twin), 1.0 + p.eta));
-        } else {
-            sums.weights.fill(1.0);
         }
         sums
     }
 
-    /// Empty sums at one step, flushed with `weights` (with fewer than [`Self::FEW`]
-    /// entries, a [`PowerSums`] with both steps).
-    fn at_step(p: &Powers, entries: usize, per_entry: usize, weights: Vec<f64>) -> Self {
+    /// Empty sums with the gaps `(gaps, kinds)` ([`gaps_of`]), flushed with `weights` (with
+    /// fewer than [`Self::FEW`] entries, a [`PowerSums`] of the lags of `p`).
+    fn at_step(
+        p: &Powers,
+        entries: usize,
+        per_entry: usize,
+        weights: Vec<f64>,
+        (gaps, kinds): (Vec<usize>, Vec<Gap>),
+    ) -> Self {
         assert!((1..=4).contains(&per_entry), "1 to 4 term combinations");
         let (lags, steps) = p.lags_and_steps();
         let width = entries.div_ceil(Self::LANES) * Self::LANES;
         let most = steps.last().copied().unwrap_or(1).max(1);
-        let gaps = (0..steps.len())
-            .map(|k| steps[k] - if k == 0 { 0 } else { steps[k - 1] })
-            .collect();
+        let least = PowerSums::TINY.powf(1.0 / most as f64) * 1.001;
         Self {
             gaps,
+            mult: vec![0.0; kinds.len() * width * per_entry],
+            one: vec![0.0; kinds.len()],
+            scratch: Vec::new(),
+            degrees: kinds.iter().map(|k| Self::degree(k, least)).collect(),
+            exact: vec![None; kinds.len()],
+            kinds,
             z: vec![0.0; width * per_entry],
             x: vec![0.0; width * per_entry],
             r: vec![0.0; width * per_entry],
@@ -132,7 +340,7 @@ impl SlotSums {
             per_entry,
             entries,
             width,
-            least: PowerSums::TINY.powf(1.0 / most as f64) * 1.001,
+            least,
             touched: false,
             arch: pulp::Arch::new(),
             few: (entries < Self::FEW).then(|| PowerSums::new(p, entries)),
@@ -140,6 +348,23 @@ impl SlotSums {
             weights,
             twin: None,
         }
+    }
+
+    /// The least degree of the Taylor polynomial of `exp(-x d)` within `2^-54` (relative) of
+    /// it for a rounded gap's `d` and every term whose powers do not underflow (`x <=
+    /// -ln(least)`): the remainder `|x d|^(D + 1) / (D + 1)!`, `|x d|` at most `3.1e-4` on a
+    /// grid written to seven digits (degree 4) and `0.013` at [`Powers::ROUNDING`] (degree 6).
+    /// `None` for whole gaps and beyond degree 9 (an exponential each).
+    fn degree(kind: &Gap, least: f64) -> Option<usize> {
+        let Gap::Real(_, d) = kind else {
+            return None;
+        };
+        let u = -least.ln() * d.abs();
+        let mut term = u;
+        (1..INV_FACT.len()).find(|&n| {
+            term *= u / (n + 1) as f64;
+            term <= f64::EPSILON / 4.0
+        })
     }
 
     /// Where the term of entry `e`'s combination `c` is kept.
@@ -274,6 +499,8 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
         for (r, x) in t.r.iter_mut().zip(&t.x) {
             *r = exp_neg(*x);
         }
+        let scratch = &mut t.scratch;
+        gap_multipliers(&t.kinds, &t.r, &t.x, &mut t.mult, &t.degrees, scratch);
         let (n, w) = (t.lags.len(), t.width);
         // (Whether any term underflows, without a branch per term.)
         let least = t.least;
@@ -285,23 +512,23 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
             if t.z[s] == 0.0 || t.r[s] >= t.least {
                 continue;
             }
-            let (z, r) = (t.z[s], t.r[s]);
+            let z = t.z[s];
             t.z[s] = 0.0;
             let e = (s / (P * L)) * L + s % L;
-            let (mut q, mut g, mut cur) = ([z], [r], 1);
+            // (Its rounded gaps' factors `exp(-x d)` as exponentials: its `x` is beyond the
+            // polynomials'.)
+            let (r, x) = (&t.r[s..=s], &t.x[s..=s]);
+            gap_multipliers(&t.kinds, r, x, &mut t.one, &t.exact, &mut t.scratch);
+            let mut q = z;
             for k in 0..n {
                 let gap = t.gaps[k];
-                if gap != 0 {
-                    if gap != cur {
-                        next_multiplier(&mut g, &[r], cur, gap);
-                        cur = gap;
-                    }
-                    q[0] *= g[0];
+                if gap != NO_GAP {
+                    q *= t.one[gap];
                 }
-                if q[0].abs() < PowerSums::TINY {
+                if q.abs() < PowerSums::TINY {
                     break;
                 }
-                t.sums[k * w + e] += q[0];
+                t.sums[k * w + e] += q;
             }
         }
         // Two blocks at a time (`2 P` independent chains of products), then the last alone;
@@ -323,8 +550,8 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
 }
 
 /// [`AddSlots`] for `B` blocks of eight entries at once (their powers' chains of products
-/// interleaved): `q = z`, and at each lag `k`, `q *= g` (`g = r^gap`, unchanged between lags of
-/// equal `|t|`) and `sums[k] += q_1 + ... + q_P`.
+/// interleaved): `q = z`, and at each lag `k`, `q *= g` (`g` the multiplier of the lag's gap,
+/// [`gap_multipliers`]; none between lags of equal `|t|`) and `sums[k] += q_1 + ... + q_P`.
 #[inline(always)]
 fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     simd: S,
@@ -334,29 +561,28 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     const L: usize = SlotSums::LANES;
     let (n, w) = (t.lags.len(), t.width);
     let mut q = [[[0.0; L]; P]; B];
-    let mut r = [[[0.0; L]; P]; B];
-    for (j, &b) in blocks.iter().enumerate() {
-        for c in 0..P {
-            let i = (b * P + c) * L;
-            r[j][c].copy_from_slice(&t.r[i..i + L]);
-            q[j][c].copy_from_slice(&t.z[i..i + L]);
+    for (qj, &b) in q.iter_mut().zip(&blocks) {
+        for (qc, z) in qj.iter_mut().zip(t.z[b * P * L..].chunks_exact(L)) {
+            qc.copy_from_slice(z);
         }
     }
-    // The multipliers of the current gap `cur`.
-    let mut g = r;
-    let mut cur = 1;
+    let slots = t.r.len();
+    // The multipliers of the current gap `cur`, kept while the gap does not change.
+    let mut g = [[[1.0; L]; P]; B];
+    let mut cur = NO_GAP;
     for k in 0..n {
         let gap = t.gaps[k];
-        if gap != 0 && gap != cur {
-            for (gj, rj) in g.iter_mut().zip(&r) {
-                for (gc, rc) in gj.iter_mut().zip(rj) {
-                    next_multiplier(gc, rc, cur, gap);
+        if gap != NO_GAP && gap != cur {
+            for (gj, &b) in g.iter_mut().zip(&blocks) {
+                let at = &t.mult[gap * slots + b * P * L..][..P * L];
+                for (gc, mc) in gj.iter_mut().zip(at.chunks_exact(L)) {
+                    gc.copy_from_slice(mc);
                 }
             }
             cur = gap;
         }
         for (j, &b) in blocks.iter().enumerate() {
-            if gap != 0 {
+            if gap != NO_GAP {
                 for (qc, gc) in q[j].iter_mut().zip(&g[j]) {
                     let (qv, _) = S::as_mut_simd_f64s(qc);
                     let (gv, _) = S::as_simd_f64s(gc);
@@ -365,15 +591,20 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
                     }
                 }
             }
-            let row = &mut t.sums[k * w + b * L..][..L];
-            let (sv, _) = S::as_mut_simd_f64s(row);
-            for (v, s) in sv.iter_mut().enumerate() {
-                let mut acc = *s;
-                for qc in q[j].iter() {
-                    acc = simd.add_f64s(acc, S::as_simd_f64s(qc).0[v]);
-                }
-                *s = acc;
-            }
+            add_row(simd, &mut t.sums[k * w + b * L..][..L], &q[j]);
         }
+    }
+}
+
+/// `row += q_1 + ... + q_P` (a block's sums at one lag, its combinations added in registers).
+#[inline(always)]
+fn add_row<S: pulp::Simd, const P: usize>(simd: S, row: &mut [f64], q: &[[f64; 8]; P]) {
+    let (sv, _) = S::as_mut_simd_f64s(row);
+    for (v, s) in sv.iter_mut().enumerate() {
+        let mut acc = *s;
+        for qc in q.iter() {
+            acc = simd.add_f64s(acc, S::as_simd_f64s(qc).0[v]);
+        }
+        *s = acc;
     }
 }
