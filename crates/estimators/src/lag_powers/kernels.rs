@@ -53,6 +53,24 @@ pub(super) fn multipliers(ms: &mut [f64], lead: f64, r8: f64) -> usize {
     live
 }
 
+/// `1 / k!`: the Taylor coefficients of [`exp_neg`] and of the slot sums' small factors.
+pub(super) const INV_FACT: [f64; 14] = [
+    1.0,
+    1.0,
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5_040.0,
+    1.0 / 40_320.0,
+    1.0 / 362_880.0,
+    1.0 / 3_628_800.0,
+    1.0 / 39_916_800.0,
+    1.0 / 479_001_600.0,
+    1.0 / 6_227_020_800.0,
+];
+
 /// `exp(-x)` for `x >= 0` to about one ulp, or zero where it is below `exp(-700)` (far below
 /// [`TINY`]): without branches or calls, so that a loop of them vectorises. The
 /// reduction `-x = n ln 2 + f`, `|f| <= ln 2 / 2`, with `ln 2` in two parts (the first exact
@@ -70,23 +88,6 @@ pub(crate) fn exp_neg(x: f64) -> f64 {
     let t = y * std::f64::consts::LOG2_E + ROUND;
     let n = t - ROUND;
     let f = (y - n * LN2_HI) - n * LN2_LO;
-    /// `1 / k!`.
-    const INV_FACT: [f64; 14] = [
-        1.0,
-        1.0,
-        1.0 / 2.0,
-        1.0 / 6.0,
-        1.0 / 24.0,
-        1.0 / 120.0,
-        1.0 / 720.0,
-        1.0 / 5_040.0,
-        1.0 / 40_320.0,
-        1.0 / 362_880.0,
-        1.0 / 3_628_800.0,
-        1.0 / 39_916_800.0,
-        1.0 / 479_001_600.0,
-        1.0 / 6_227_020_800.0,
-    ];
     let mut p = INV_FACT[13];
     for c in INV_FACT[..13].iter().rev() {
         p = p * f + c;

@@ -1,7 +1,7 @@
 //! [`SlotSums`]: real sums of `z r^(m_l)` with one vector lane per entry.
 
 use super::Powers;
-use super::kernels::exp_neg;
+use super::kernels::{INV_FACT, exp_neg};
 use super::sums::PowerSums;
 use num_complex::Complex64;
 use speckle_stats::BatchSum;
@@ -257,20 +257,6 @@ fn powers_into(o: &mut [f64], base: &[f64], k: usize, sq: &mut [f64]) {
     }
 }
 
-/// `1 / k!` for the Taylor polynomials of [`gap_multipliers`].
-const INV_FACT: [f64; 10] = [
-    1.0,
-    1.0,
-    1.0 / 2.0,
-    1.0 / 6.0,
-    1.0 / 24.0,
-    1.0 / 120.0,
-    1.0 / 720.0,
-    1.0 / 5_040.0,
-    1.0 / 40_320.0,
-    1.0 / 362_880.0,
-];
-
 impl SlotSums {
     /// Fewer entries than this take [`PowerSums`]: its cost per term is about that of a
     /// block of eight lanes with three filled.
@@ -361,7 +347,7 @@ impl SlotSums {
         };
         let u = -least.ln() * d.abs();
         let mut term = u;
-        (1..INV_FACT.len()).find(|&n| {
+        (1..=9).find(|&n| {
             term *= u / (n + 1) as f64;
             term <= f64::EPSILON / 4.0
         })
