@@ -41,7 +41,7 @@
 //! over an aperture) supplies its own.
 //!
 //! Adding a kind touches its new module, the variants and dispatch arms in this file and
-//! `kernels/mod.rs`, the pair cases of `mean.rs` and `free_space.rs`, and the scene schema
+//! `kernels/mod.rs`, the pair cases of `mean/mod.rs` and `free_space.rs`, and the scene schema
 //! (`speckle-scene`); nothing in the estimators or the wave solver.
 
 #![forbid(unsafe_code)]
