@@ -200,8 +200,9 @@ fn gap_multipliers(
                     Some(8) => taylor::<8>(o, x, pw, d),
                     Some(_) => taylor::<9>(o, x, pw, d),
                     None => {
+                        // (Clamped as the polynomials are: where `|x d| > 700`, `p` is zero.)
                         for ((o, x), p) in o.iter_mut().zip(x).zip(pw) {
-                            *o = (-x * d).exp() * p;
+                            *o = (-x * d).clamp(-700.0, 700.0).exp() * p;
                         }
                     }
                 }
@@ -211,11 +212,14 @@ fn gap_multipliers(
 }
 
 /// `o = p exp(-x d)` element by element, the exponential by its Taylor polynomial of degree
-/// `D` (Horner's rule from the top coefficient `1 / D!`), one loop over the elements.
+/// `D` (Horner's rule from the top coefficient `1 / D!`), one loop over the elements. Its
+/// argument is clamped to `[-1, 1]`, which no term it serves reaches (`|x d| <= 0.013`): a lane
+/// of no term, or of one whose powers underflow, keeps a finite multiplier however large its
+/// `x` (never `0 * inf`).
 #[inline(always)]
 fn taylor<const D: usize>(o: &mut [f64], x: &[f64], p: &[f64], d: f64) {
     for ((o, x), p) in o.iter_mut().zip(x).zip(p) {
-        let u = -d * x;
+        let u = (-d * x).clamp(-1.0, 1.0);
         let mut t = INV_FACT[D];
         for a in INV_FACT[..D].iter().rev() {
             t = t * u + a;

@@ -449,3 +449,28 @@ fn sparse_grids_with_odd_gaps_are_the_exponentials() {
     check_power_sums(&lags, &[1e-4, 3e-3, 0.05, 0.9], 0.0);
     check_slot_sums(&lags, 11, 0.0);
 }
+
+/// A lane of a term whose powers underflow at once (`x = 1e200`: its rounded gaps' polynomial
+/// arguments far outside their range) leaves the slot sums finite: its own term adds nothing
+/// and its neighbours' sums are the exponentials.
+#[test]
+fn huge_exponents_leave_rounded_slot_sums_finite() {
+    let lags = seven_digits();
+    let terms = vec![vec![
+        (0, 0, 1.0, 1e200),
+        (1, 0, 2.0, 0.1),
+        (2, 1, 1.0, 1e200),
+    ]];
+    let got = slot_sums(&lags, 11, None, &terms);
+    let p = Powers::of(&lags).unwrap();
+    for (t, row) in lags.iter().zip(&got).skip(1) {
+        assert!(row.iter().all(|z| z.re.is_finite()), "{row:?}");
+        assert_eq!(row[0].re, 0.0);
+        let want = 2.0 * (-0.1 * t / p.delta).exp();
+        assert!(
+            (row[1].re - want).abs() <= 1e-13 * want,
+            "{} vs {want}",
+            row[1].re
+        );
+    }
+}
