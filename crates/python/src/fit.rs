@@ -1,7 +1,9 @@
 //! `speckle.fit`: fits of `[fit]` to a measurement from one render with path records
 //! (`speckle::runs::fit`), as numpy arrays.
 
-use crate::{PyProblem, interruptible, run_error, scene_error};
+use crate::errors::{run_error, scene_error};
+use crate::interrupt::interruptible;
+use crate::problem::PyProblem;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -71,7 +73,7 @@ pub fn fit<'py>(
         (None, None) => None,
     };
     let measured = runs_fit::measurement(p, data.as_ref()).map_err(|e| fit_error(py, e))?;
-    let t = crate::thread_count(py, threads)?;
+    let t = crate::interrupt::thread_count(py, threads)?;
     let command = match settings.quantity {
         Quantity::Intensity => Command::Intensity,
         Quantity::G1 | Quantity::G2 => Command::G1,

@@ -2,7 +2,10 @@
 //! (`speckle::runs::plan`, the numbers `speckle plan` prints), as a dict of plain floats, lists
 //! and `None`.
 
-use crate::{PyProblem, interruptible, run_error, scene_error, set_units};
+use crate::errors::{run_error, scene_error};
+use crate::interrupt::interruptible;
+use crate::output::set_units;
+use crate::problem::PyProblem;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use speckle::medium::DVec3;

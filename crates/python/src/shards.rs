@@ -2,10 +2,12 @@
 //! header and numbers, `speckle::runs::ShardFile`, to and from bytes and files), and
 //! `speckle.merge` merges shards or shard files into the single run's arrays.
 
-use crate::{
-    PyProblem, ShardError, interruptible, kind_of, outcome_dict, python_defaults, run_error,
-    shard_error, thread_count,
-};
+use crate::errors::{ShardError, run_error, shard_error};
+use crate::input::python_defaults;
+use crate::interrupt::{interruptible, thread_count};
+use crate::output::outcome_dict;
+use crate::problem::PyProblem;
+use crate::render::kind_of;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use speckle::runs::{self, ShardFile};
