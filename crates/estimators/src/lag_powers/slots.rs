@@ -35,7 +35,7 @@ use speckle_stats::BatchSum;
 /// [`Self::SAME`] (times the largest step count) of each other share one multiplier (the
 /// floating-point differences of rounded lags differ in their last bits): a lag's exponent is
 /// then off by at most `k` times that, at most `0.37` times it relative to the term's weight
-/// (`1.2e-13` for 64 steps). A rounded grid with more than [`Self::MAX_REAL`] distinct gaps
+/// (`1.1e-13` steps and `4.2e-14` of the weight for 64 steps). A rounded grid with more than [`Self::MAX_REAL`] distinct gaps
 /// (a multi-tau grid written to a few digits) interpolates instead, as [`PowerSums`] does,
 /// between the sums at the step and at the step stretched by the largest rounding.
 ///

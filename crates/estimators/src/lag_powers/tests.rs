@@ -375,7 +375,7 @@ fn rounded_lags_are_interpolated_between_two_steps() {
 /// Slot sums of lags that are multiples of one step only to within their rounding take each
 /// lag's gap from the one before as its own multiplier (five distinct gaps on the seven-digit
 /// grid, one of them whole): `sum z exp(-x |t| / delta)` at each lag's own `|t|` to within the
-/// powers' rounding and the shared gaps' bound `0.37 SAME m_max = 1.2e-13` of the terms'
+/// powers' rounding and the shared gaps' bound `0.37 SAME m_max = 4.2e-14` of the terms'
 /// weights, without the interpolation's slack; terms whose powers underflow included (their
 /// factors as exponentials). A rounded multi-tau grid, of more distinct gaps, interpolates.
 #[test]
