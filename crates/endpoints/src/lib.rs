@@ -61,7 +61,7 @@ pub use attenuation::NearField;
 pub use detector::{Detector, ON_FACE_TOLERANCE, Weighting};
 pub use free_space::{FreeSpace, direct_field, incident_field, sensor_response};
 pub use gaussian::GaussianBeam;
-pub use kernels::{Endpoints, Legs, SingleScratch};
+pub use kernels::{Damping, Endpoints, Legs, SingleScratch};
 pub use mean::{mean_field, mean_field_cancellable};
 
 use glam::DVec3;

@@ -299,7 +299,11 @@ pub(crate) mod near {
     /// `Upsilon(x, w) = int a~(psi; x) s(psi . w) dpsi = sum_m e^(l_m) int a~(psi)
     /// e^(gamma_m w . psi) dpsi` (Eqs. 15-16, exact for a known outgoing source-form direction
     /// `w`: every `B >= 2` vertex and single scattering towards a non-Gaussian endpoint).
-    /// `aperture` comes from [`aperture_at`].
+    /// `aperture` comes from [`aperture_at`]. With a [`Damping`](crate::Damping) other than
+    /// none, the integrand is multiplied by `e^(-c (1 - psi . w)) e^(tilt . psi)` (every lobe
+    /// `(gamma + c, l - c)` and the parameter shifted by `tilt`); none is the plain connection,
+    /// bitwise.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(crate) fn push_upsilon(
         batch: &mut Batch,
@@ -307,15 +311,21 @@ pub(crate) mod near {
         factor: Complex64,
         aperture: &ComplexVmf,
         lobes: &[(f64, f64)],
+        damping: &crate::Damping,
         w: DVec3,
         sink: &mut impl FnMut(usize, Complex64),
     ) {
+        let a = damping.tilted(aperture);
         for &(gamma, l) in lobes {
-            let mut mu = aperture.mu;
+            let (gamma, l) = match damping.c {
+                0.0 => (gamma, l),
+                c => (gamma + c, l - c),
+            };
+            let mut mu = a.mu;
             for (m, d) in mu.iter_mut().zip(w.to_array()) {
                 m.re += gamma * d;
             }
-            batch.push(owner, factor, aperture.log_scale + l, mu, sink);
+            batch.push(owner, factor, a.log_scale + l, mu, sink);
         }
     }
 

@@ -692,10 +692,12 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             im[owner % n] += v.im;
         };
         let mut batch = near::Batch::new(self.three);
+        let none = &crate::Damping::NONE;
         for (c, l) in legs.iter().enumerate() {
             for i in 0..n {
                 if let Kind::Gaussian(_) = &self.ends[i] {
-                    near::push_upsilon(&mut batch, c * n + i, one, &l.aperture[i], lobes, w, sink);
+                    let a = &l.aperture[i];
+                    near::push_upsilon(&mut batch, c * n + i, one, a, lobes, none, w, sink);
                 }
             }
         }
@@ -710,7 +712,9 @@ pub(crate) fn lobes<P: PhaseFunction>(phase: &P) -> &[(f64, f64)] {
         .expect("a Gaussian connection needs a phase with vMF lobes (check_near_field)")
 }
 
+mod damping;
 mod single;
+pub use damping::Damping;
 pub use single::SingleScratch;
 
 #[cfg(test)]

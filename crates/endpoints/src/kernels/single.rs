@@ -4,7 +4,8 @@
 //! whose beams' integrals go through one batch and whose two-beam convolutions are formed once
 //! per source, lobe and sensor axis rather than once per pair.
 
-use super::{Endpoints, Legs, lobes};
+use super::damping::Tilt;
+use super::{Damping, Endpoints, Legs, lobes};
 use crate::Kind;
 use crate::gaussian::near::{self, Batch, Convolved};
 use num_complex::Complex64;
@@ -52,29 +53,15 @@ impl<M: Medium> Endpoints<'_, M> {
         v: usize,
         phase: &P,
     ) -> Complex64 {
-        let three = self.three;
-        let mut sum = Complex64::new(0.0, 0.0);
-        let sink = &mut |_, x| sum += x;
-        let mut batch = Batch::new(three);
-        match (&self.ends[s], &sensors.ends[v]) {
-            (Kind::Gaussian(_), Kind::Gaussian(bv)) => {
-                let lobes = lobes(phase);
-                let (a_s, a_v) = (&in1.aperture[s], &out1.aperture[v]);
-                near::push_single_both(
-                    &mut batch,
-                    0,
-                    a_v,
-                    lobes,
-                    |m| lobes[m].1.exp(),
-                    |m| near::convolved(a_s, three, lobes[m].0, -bv.axis),
-                    || (near::integral(a_s, three), near::integral(a_v, three)),
-                    sink,
-                )
-            }
-            _ => self.push_single_leg(&mut batch, 0, (in1, s), (sensors, out1, v), phase, sink),
-        }
-        batch.flush(sink);
-        sum
+        self.single_tilted(
+            in1,
+            s,
+            sensors,
+            out1,
+            v,
+            phase,
+            [Complex64::new(0.0, 0.0); 3],
+        )
     }
 
     /// [`Endpoints::single`] for every pair `(i, s, v)` of `pairs` (pair `i` between source `s`
@@ -154,23 +141,31 @@ impl<M: Medium> Endpoints<'_, M> {
                         sink,
                     )
                 }
-                _ => self.push_single_leg(&mut batch, i, (in1, s), (sensors, out1, v), phase, sink),
+                _ => {
+                    let ends = (sensors, out1, v);
+                    let none = &Tilt([Complex64::new(0.0, 0.0); 3]);
+                    self.push_single_leg(&mut batch, i, (in1, s), ends, phase, none, sink)
+                }
             }
         }
         batch.flush(sink);
     }
 
     /// Queues the single-scattering value of source `s` and sensor `v`, not both Gaussian
-    /// beams, for `owner` on `batch` (directly for two leg endpoints).
-    fn push_single_leg<P: PhaseFunction>(
+    /// beams, for `owner` on `batch` (directly for two leg endpoints), the plane waves `psi`
+    /// (source form) weighted by `tilt`'s `e^(tilt . psi)`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn push_single_leg<P: PhaseFunction>(
         &self,
         batch: &mut Batch,
         owner: usize,
         (in1, s): (&Legs, usize),
         (sensors, out1, v): (&Endpoints<'_, M>, &Legs, usize),
         phase: &P,
+        tilt: &Tilt,
         sink: &mut impl FnMut(usize, Complex64),
     ) {
+        let none = &Damping::NONE;
         match (&self.ends[s], &sensors.ends[v]) {
             (Kind::Gaussian(_), Kind::Gaussian(_)) => {
                 unreachable!("two beams: gaussian::near::push_single_both")
@@ -178,23 +173,26 @@ impl<M: Medium> Endpoints<'_, M> {
             (Kind::Gaussian(_), _) => near::push_upsilon(
                 batch,
                 owner,
-                out1.amp(v),
-                &in1.aperture[s],
+                tilt.weigh(out1.amp(v), -out1.dir(v)),
+                &tilt.tilted(&in1.aperture[s]),
                 lobes(phase),
+                none,
                 out1.dir(v),
                 sink,
             ),
             (_, Kind::Gaussian(_)) => near::push_upsilon(
                 batch,
                 owner,
-                in1.amp(s),
-                &out1.aperture[v],
+                tilt.weigh(in1.amp(s), in1.dir(s)),
+                &tilt.tilted(&out1.aperture[v]),
                 lobes(phase),
+                none,
                 -in1.dir(s),
                 sink,
             ),
             _ => {
                 let x = in1.amp(s) * out1.amp(v) * phase.amplitude_between(in1.dir(s), out1.dir(v));
+                let x = tilt.weigh(tilt.weigh(x, in1.dir(s)), -out1.dir(v));
                 batch.push_value(owner, x, sink)
             }
         }
