@@ -7,8 +7,9 @@
 //! a multi-tau grid (eight lags per level, the step doubling per level; issue 30, item 4).
 //! Fixed seeds; `cargo bench --bench motion`; paths per second.
 //!
-//! With Gaussian beams (Bar et al. 2020), whose end vertices' Brownian displacements are sampled
-//! and connected at every lag (as drift is), `g1` at 64 lags of a beam source and a beam sensor
+//! With Gaussian beams (Bar et al. 2020), whose end vertices' Brownian averages are closed forms
+//! up to one normal vector per vertex (each copy's beam integrals damped and tilted at the vertex,
+//! one per beam, lobe, copy and lag), `g1` at 64 lags of a beam source and a beam sensor
 //! against their static near-field covariance (`beams/...`).
 //!
 //! Also field sequences (`render_field_sequence`, Brownian motion) at 8 times against the static

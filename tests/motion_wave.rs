@@ -217,8 +217,9 @@ fn flatland_beams(gamma: f64) -> Scene<HomogeneousBox, Phase> {
 }
 
 /// Brownian motion (`D = 0.05`, `k^2 D t` up to 5.9) with focused Gaussian beams
-/// ([`flatland_beams`], concentration 25): the end vertices' sampled displacements against the
-/// solver's moving configurations. About 35 s (ci profile, 2 busy cores).
+/// ([`flatland_beams`], concentration 25): the end vertices' Gaussian averages (closed forms up
+/// to one normal vector per vertex, `speckle_endpoints::Damping`) against the solver's moving
+/// configurations. About 35 s (ci profile, 2 busy cores).
 #[test]
 fn flatland_gaussian_beams_brownian() {
     run(&Case {

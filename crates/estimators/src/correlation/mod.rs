@@ -25,19 +25,29 @@
 //! medium without drift path by path (up to attenuation and boundary effects).
 //!
 //! **Focused Gaussian beams** (Bar et al. 2020) are superpositions of plane waves, so a beam's
-//! end vertex has no single leg direction for the averaged transfer; the Gaussian average over
-//! its displacement couples the directions of both copies' apertures (and a beam's spread of
-//! directions decorrelates a forward-scattering end vertex that a single direction would
-//! leave intact). With beams in the scene, the end vertices' Brownian displacements are
-//! therefore *sampled* instead: per path, a standard normal vector `z_1` for the first vertex
-//! and `z_b` for each later one (from a stream of their own, `BROWNIAN_KEY`), and at lag `t`
-//! copy 1 connects from `x - Delta/2`, copy 2 from `x + Delta/2`, `Delta = t U + sqrt(2 D |t|) z`,
-//! with the exact connections there (as drift is), times the shared segments' first-order
-//! phase `exp(i k (w_1 . Delta_1 - w_in . Delta_b))` (Brownian parts only;
+//! end vertex has no single leg direction for the averaged transfer: the Gaussian average over
+//! its displacement couples the plane waves of both copies' apertures, `e^(-C |(p + p') / 2|^2)`
+//! for the copies' momentum transfers `p = psi - w`, `p' = psi' - w` (`C = k^2 D |t|`; and a
+//! beam's spread of directions decorrelates a forward-scattering end vertex that a single
+//! direction would leave intact). Without drift that average is taken in closed form up to one
+//! standard normal vector `u` per end vertex (`damped.rs`, `speckle_endpoints::Damping`): it is
+//! each copy's own `e^(-C (1 - psi . w))`, a damping of the amplitude that keeps every beam
+//! integral a closed-form vMF integral (each lobe `(gamma, l) -> (gamma + C, l - C)`), times the
+//! coupling `e^(C |psi - psi'|^2 / 4) = E_u[e^(s u . psi) e^(-s u . psi')]`, `s = sqrt(C / 2)`,
+//! a real tilt of each copy's aperture; both copies connect at the vertex itself (one set of
+//! legs, apertures and attenuation fits for every lag), each lag costing one vMF integral per
+//! beam, lobe and copy. Single scattering has no path direction there: its copies tilt both
+//! beams' plane waves by the displacement's phase, `-/+ i k Delta / 2`, `Delta = sqrt(2 D |t|)
+//! z_1`. Both take the draw and its opposite (antithetic). With drift, the end vertices'
+//! displacements are *sampled* instead: per path, a standard normal vector `z_1` for the first
+//! vertex and `z_b` for each later one (from a stream of their own, `BROWNIAN_KEY`), and at lag
+//! `t` copy 1 connects from `x - Delta/2`, copy 2 from `x + Delta/2`, `Delta = t U + sqrt(2 D
+//! |t|) z`, with the exact connections there (as drift is), times the shared segments'
+//! first-order phase `exp(i k (w_1 . Delta_1 - w_in . Delta_b))` (Brownian parts only;
 //! [`speckle_motion::EndDisplacement`] and [`speckle_motion::segment_phase`], the same in plain
-//! data for an outside tracer). Its expectation
-//! over `z` is the exact Gaussian average at the end vertices; interior vertices keep the
-//! closed form. Lags are then connected one by one (no powers).
+//! data for an outside tracer). Its expectation over `z` is the exact Gaussian average at the
+//! end vertices; interior vertices keep the closed form. `tests/motion_beams.rs` compares the
+//! two. Lags are connected one by one (no powers).
 //!
 //! The medium's box stays where it is while its scatterers flow through it: a path whose
 //! vertex `x_m` would lie outside the box at either time (`x_m -/+ t U(x_m) / 2`) goes through
@@ -59,6 +69,7 @@
 //! exponentials, so each term is one complex exponential in the lag and takes powers too
 //! (`linear.rs`, equal to the copy-by-copy connections to rounding).
 
+mod damped;
 mod factor;
 mod legs;
 mod linear;
@@ -71,6 +82,7 @@ use crate::lag_powers::{DriftSums, PowerSums, Powers, SlotSums};
 use crate::{
     Coherence, CovarianceEstimate, CovarianceOptions, EstimatorError, MatrixEstimate, Scene,
 };
+use damped::DampedScratch;
 use glam::DVec3;
 use num_complex::Complex64;
 use sink::*;
@@ -261,8 +273,9 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
         entries: list,
         local,
         mode,
-        sampled: beams,
-        displaced: model.has_drift() || beams,
+        sampled: beams && model.has_drift(),
+        damped: beams && !model.has_drift(),
+        displaced: model.has_drift(),
         key: derive_seed(options.seed, BROWNIAN_KEY),
         flat: scene.medium().dimension() == speckle_medium::Dimension::Two,
         combos: match options.coherence {
@@ -309,6 +322,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
     };
     let init = || {
         let conn = Connector::new(scene);
+        let conn_len = (conn.sources().len(), conn.sensors().len());
         let ends = (0..sets)
             .map(|_| Ends::new(conn.sources(), conn.sensors()))
             .collect();
@@ -350,6 +364,9 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             }),
             legs: Default::default(),
             count: 0,
+            damped: plan
+                .damped
+                .then(|| DampedScratch::new(lags.len(), conn_len.0, conn_len.1)),
         }
     };
     let path = |s: &mut Scratch<M, P>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {
@@ -363,7 +380,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             type1: 0,
             poll,
         };
-        if plan.sampled {
+        if plan.sampled || plan.damped {
             sink.s.brown = PathRng::new(plan.key, n);
         }
         tracer.trace(&mut PathRng::new(options.seed, n), &mut sink);

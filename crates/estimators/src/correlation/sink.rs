@@ -25,8 +25,11 @@ pub(super) struct Plan {
     pub(super) local: Vec<Entry>,
     pub(super) mode: Mode,
     /// Whether the end vertices' Brownian displacements are sampled (scenes with Gaussian
-    /// beams).
+    /// beams and drift).
     pub(super) sampled: bool,
+    /// Whether copy 2's end vertices are averaged over their Brownian displacements in closed
+    /// form by damped connections (scenes with Gaussian beams and no drift; `damped.rs`).
+    pub(super) damped: bool,
     /// Whether the copies of every lag connect from displaced points (drift, or sampled
     /// displacements): then each lag has its own ends.
     pub(super) displaced: bool,
@@ -106,6 +109,8 @@ pub(super) struct Scratch<'s, M, P> {
     /// The exponential drift's count of the leading lags (increasing) at which every vertex
     /// of the path so far stays in the box (its `inside`).
     pub(super) count: usize,
+    /// With Gaussian beams and no drift: the damped connections (`damped.rs`).
+    pub(super) damped: Option<super::damped::DampedScratch>,
 }
 
 pub(super) struct CorrelationSink<'a, 's, 'p, M, P> {
@@ -505,6 +510,14 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
         if self.plan.any_zero {
             self.s.conn.fill_first();
         }
+        if self.plan.damped {
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l, weight);
+            }
+            self.s.z1 = self.normal();
+            self.damped_single(weight);
+            return;
+        }
         if self.plan.sampled {
             self.s.z1 = self.normal();
         }
@@ -565,6 +578,9 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             if self.connector_legs() {
                 self.s.conn.second(v.w12);
             }
+            if self.plan.damped {
+                self.damped_second(v.w12);
+            }
             if self.plan.displaced && self.plan.linear.is_none() {
                 let s = &mut *self.s;
                 let (src, sen) = (s.conn.sources(), s.conn.sensors());
@@ -579,6 +595,15 @@ impl<M: Medium, P: PhaseFunction> VertexSink for CorrelationSink<'_, '_, '_, M, 
             self.s.conn.fill_vertex(self.coherence);
         }
         let w_in = v.w_in;
+        if self.plan.damped {
+            let weight = v.weight_for(self.coherence);
+            for &l in &self.plan.zero_lags {
+                self.push_static(2 * l + 1, weight);
+            }
+            self.s.zb = self.normal();
+            self.damped_vertex(w_in, v.ty, weight);
+            return;
+        }
         if self.plan.sampled {
             self.s.zb = self.normal();
         }
