@@ -106,3 +106,40 @@ fn damped_ends_equal_sampled_displacements() {
         assert!(s3.re < 0.03 * (c0.re - c3.re), "entry {e}: {s3}");
     }
 }
+
+/// Lags far into the decorrelation (`k^2 D t` of `8 10^5` and `8 10^8`) give finite values,
+/// decorrelated to below a thousandth of `C(0)` (each copy's weight stays bounded: `Damping`'s
+/// docs; forward scattering from one beam into the other, whose momentum transfer vanishes,
+/// keeps about `1 / (k^2 D t)` of the single scattering: 1% at `k^2 D t = 790`).
+#[test]
+fn huge_lags_stay_finite() {
+    let s = scene();
+    let o = CovarianceOptions {
+        paths: 2000,
+        seed: 5,
+        coherence: Coherence::ForwardAndReversed,
+        ..Default::default()
+    };
+    let model = MotionModel::uniform(Motion::brownian(0.02).unwrap());
+    let lags = [0.0, 1e6, 1e9];
+    let c = render_correlation(&s, &model, &lags, &Entries::Full, &o, &NoProgress).unwrap();
+    let j = s.len();
+    for l in 1..lags.len() {
+        for e in 0..j * j {
+            let (v, se) = c.total(l, e);
+            assert!(
+                v.is_finite() && se.is_finite(),
+                "lag {l} entry {e}: {v} +- {se}"
+            );
+            let (c0, _) = c.total(0, (e / j) * (j + 1));
+            println!(
+                "lag {} entry {e}: {v:.3e} +- {se:.1e} (C(0) {:.3e})",
+                lags[l], c0.re
+            );
+            assert!(
+                v.norm() < 1e-3 * c0.re,
+                "lag {l} entry {e}: {v} against {c0}"
+            );
+        }
+    }
+}

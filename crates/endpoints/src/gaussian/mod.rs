@@ -300,9 +300,9 @@ pub(crate) mod near {
     /// e^(gamma_m w . psi) dpsi` (Eqs. 15-16, exact for a known outgoing source-form direction
     /// `w`: every `B >= 2` vertex and single scattering towards a non-Gaussian endpoint).
     /// `aperture` comes from [`aperture_at`]. With a [`Damping`](crate::Damping) other than
-    /// none, the integrand is multiplied by `e^(-c (1 - psi . w)) e^(tilt . psi)` (every lobe
-    /// `(gamma + c, l - c)` and the parameter shifted by `tilt`); none is the plain connection,
-    /// bitwise.
+    /// none, the integrand is multiplied by `e^(-c (1 - psi . w)) e^(tilt . (psi - w))` (every
+    /// lobe `(gamma + c, l - c - tilt . w)` and the parameter shifted by `tilt`); none is the
+    /// plain connection, bitwise.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(crate) fn push_upsilon(
@@ -317,9 +317,10 @@ pub(crate) mod near {
     ) {
         let a = damping.tilted(aperture);
         for &(gamma, l) in lobes {
-            let (gamma, l) = match damping.c {
-                0.0 => (gamma, l),
-                c => (gamma + c, l - c),
+            let (gamma, l) = if *damping == crate::Damping::NONE {
+                (gamma, l)
+            } else {
+                (gamma + damping.c, l - damping.c - damping.tilt.dot(w))
             };
             let mut mu = a.mu;
             for (m, d) in mu.iter_mut().zip(w.to_array()) {

@@ -17,7 +17,8 @@
 //! [`Damping`] `(C, s u)` and copy 2 `(C, -s u)` for one `u` drawn per end vertex: the product of
 //! copy 1 and the conjugate of copy 2, averaged over `u`, is the Gaussian average exactly, while
 //! every connection stays one closed-form vMF integral per lobe (the plane waves' weight
-//! `e^(tilt . psi)` shifts the aperture's real parameter).
+//! `e^(tilt . (psi - w))` shifts the aperture's real parameter and its scale; keeping `w` in it
+//! bounds each copy at any lag, see [`Damping`]).
 
 use super::{Endpoints, Legs, lobes};
 use crate::gaussian::near::{self, Batch};
@@ -29,13 +30,15 @@ use speckle_phase::PhaseFunction;
 use speckle_vmf::ComplexVmf;
 
 /// The weight of each plane wave `psi` (source form) of a connection averaged over a Gaussian
-/// displacement of its point (module docs): `e^(-c (1 - psi . w)) e^(tilt . psi)`, `w` the path
-/// direction in source form.
+/// displacement of its point (module docs): `e^(-c (1 - psi . w)) e^(tilt . (psi - w))`, `w` the
+/// path direction in source form. (The factor `e^(-tilt . w)` cancels between the two copies of
+/// a [`Damping::pair`]; with it each copy's weight is at most `e^(|tilt|^2 / (2 c))`, `e^(|u|^2 /
+/// 4)` for a pair, at any lag, where `e^(tilt . psi)` alone would overflow at large `c`.)
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Damping {
     /// `c >= 0`: the amplitude damped by `e^(-c (1 - mu))`.
     pub c: f64,
-    /// The plane waves weighted by `e^(tilt . psi)`.
+    /// The plane waves weighted by `e^(tilt . (psi - w))`.
     pub tilt: DVec3,
 }
 
@@ -67,14 +70,14 @@ impl Damping {
         Tilt(t).tilted(a)
     }
 
-    /// The weight of a leg endpoint's one plane wave `psi` at the cosine `mu` of its
-    /// scattering.
+    /// The weight of a leg endpoint's one plane wave `psi` for the path direction `w` (source
+    /// form), `mu = psi . w`.
     #[inline]
-    pub(crate) fn leg(&self, mu: f64, psi: DVec3) -> f64 {
+    pub(crate) fn leg(&self, mu: f64, psi: DVec3, w: DVec3) -> f64 {
         if *self == Self::NONE {
             return 1.0;
         }
-        (self.tilt.dot(psi) - self.c * (1.0 - mu)).exp()
+        (self.tilt.dot(psi - w) - self.c * (1.0 - mu)).exp()
     }
 }
 
@@ -111,7 +114,7 @@ impl Tilt {
 impl<M: Medium> Endpoints<'_, M> {
     /// [`Endpoints::scatter`] at the point of `legs`, each plane wave `psi` (source form) of
     /// every connection weighted by one [`Damping`] of `dampings` (`e^(-c (1 - psi . w))
-    /// e^(tilt . psi)`, `w` the path direction in source form; a Gaussian average over a
+    /// e^(tilt . (psi - w))`, `w` the path direction in source form; a Gaussian average over a
     /// displacement of the point, see [`Damping`]): the values of `dampings[l]` go to
     /// `out_re[l n..(l + 1) n]`, `out_im[..]`, `n = len()`; the beams' integrals of every
     /// damping go through one batch. For a leg endpoint `psi` is its leg direction (a sensor's
@@ -146,9 +149,10 @@ impl<M: Medium> Endpoints<'_, M> {
             } else {
                 legs.amp(i) * phase.amplitude_between(w_in, w_out)
             };
-            let (mu, psi) = (w_in.dot(w_out), sign * legs.dir(i));
+            let (mu, psi, w) = (w_in.dot(w_out), sign * legs.dir(i), sign * w_out);
+            let w = if sign > 0.0 { w } else { -w_in };
             for (l, d) in dampings.iter().enumerate() {
-                let y = if gaussian { x } else { x * d.leg(mu, psi) };
+                let y = if gaussian { x } else { x * d.leg(mu, psi, w) };
                 out_re[l * n + i] = y.re;
                 out_im[l * n + i] = y.im;
             }

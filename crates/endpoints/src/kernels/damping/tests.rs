@@ -252,3 +252,46 @@ fn tilted_single_scattering_is_single_scattering_at_the_moved_point() {
         }
     }
 }
+
+/// At lags far into the decorrelation (`C = 10^7`, a tilt of norm `8 10^3`, where `e^(tilt .
+/// psi)` alone overflows) every damped connection is finite and at most the bound
+/// `e^(|u|^2 / 4)` times the undamped scale, and the pair's product is finite, for beams and
+/// leg endpoints, both sides.
+#[test]
+fn huge_dampings_stay_finite() {
+    let b = Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 6.0)).unwrap();
+    let m = HomogeneousBox::from_mean_free_path(b, 2.0, 1.0).unwrap();
+    let beam = crate::GaussianBeam::new("b", DVec3::ZERO, DVec3::Z, 9.0).unwrap();
+    let sources = vec![
+        Source::GaussianBeam(beam.clone()),
+        Source::plane_wave(DVec3::new(0.2, 0.0, 1.0)).unwrap(),
+    ];
+    let sensors = vec![
+        Sensor::far_field(DVec3::Z).unwrap(),
+        Sensor::GaussianBeam(beam),
+    ];
+    let phase = speckle_phase::Phase::Isotropic;
+    let u = DVec3::new(3.0, -2.5, 1.5);
+    for w in [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), -DVec3::Z] {
+        for set in [
+            Endpoints::sources(&m, 6.0, &sources),
+            Endpoints::sensors(&m, 6.0, &sensors),
+        ] {
+            let n = set.len();
+            let mut legs = set.legs();
+            set.connect(DVec3::new(0.1, 0.2, -0.3), &mut legs);
+            let (mut re, mut im) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
+            let pair = Damping::pair(1e7, u);
+            set.scatter_damped(&legs, &phase, |d| (d, w), &pair, &mut re, &mut im);
+            for i in 0..n {
+                let (a, b) = (
+                    Complex64::new(re[i], im[i]),
+                    Complex64::new(re[n + i], im[n + i]),
+                );
+                let p = a * b.conj();
+                assert!(a.is_finite() && b.is_finite() && p.is_finite(), "{a} {b}");
+                assert!(a.norm() <= 1e3 * (0.25 * u.length_squared()).exp(), "{a}");
+            }
+        }
+    }
+}
