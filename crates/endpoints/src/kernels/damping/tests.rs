@@ -263,7 +263,7 @@ fn huge_dampings_stay_finite() {
     let m = HomogeneousBox::from_mean_free_path(b, 2.0, 1.0).unwrap();
     let beam = crate::GaussianBeam::new("b", DVec3::ZERO, DVec3::Z, 9.0).unwrap();
     let sources = vec![
-        Source::GaussianBeam(beam.clone()),
+        Source::GaussianBeam(beam),
         Source::plane_wave(DVec3::new(0.2, 0.0, 1.0)).unwrap(),
     ];
     let sensors = vec![
