@@ -124,7 +124,7 @@ fn huge_lags_stay_finite() {
     let lags = [0.0, 1e6, 1e9];
     let c = render_correlation(&s, &model, &lags, &Entries::Full, &o, &NoProgress).unwrap();
     let j = s.len();
-    for l in 1..lags.len() {
+    for (l, t) in lags.iter().enumerate().skip(1) {
         for e in 0..j * j {
             let (v, se) = c.total(l, e);
             assert!(
@@ -133,8 +133,8 @@ fn huge_lags_stay_finite() {
             );
             let (c0, _) = c.total(0, (e / j) * (j + 1));
             println!(
-                "lag {} entry {e}: {v:.3e} +- {se:.1e} (C(0) {:.3e})",
-                lags[l], c0.re
+                "lag {t} entry {e}: {v:.3e} +- {se:.1e} (C(0) {:.3e})",
+                c0.re
             );
             assert!(
                 v.norm() < 1e-3 * c0.re,
