@@ -41,10 +41,10 @@
 //! covariance. Sampled fields (Alg. 2) cannot do this (a field's power is `|u|^2` of one
 //! estimate), so they keep Eq. 25.
 
+use crate::Kind;
 use crate::gaussian::{GaussianBeam, near};
 use crate::kernels::{BoxMedium, Endpoints, Legs};
 use crate::plane;
-use crate::{Kind, Side};
 use glam::DVec3;
 use num_complex::Complex64;
 use speckle_medium::Medium;
@@ -322,11 +322,7 @@ impl<M: Medium> Endpoints<'_, M> {
             return;
         }
         let lobes = crate::kernels::lobes(phase);
-        let (w_in, w_out) = dirs(DVec3::ZERO);
-        let w = match self.side() {
-            Side::Source => w_out,
-            Side::Sensor => -w_in,
-        };
+        let w = self.source_form(&dirs);
         for (i, e) in self.kinds().iter().enumerate() {
             if let Kind::Gaussian(_) = e {
                 let d = &legs.draws[set][i];

@@ -397,11 +397,6 @@ impl<'m, M: Medium> Endpoints<'m, M> {
         self.three
     }
 
-    /// Which side the endpoints are on.
-    pub(crate) fn side(&self) -> Side {
-        self.side
-    }
-
     /// The set's id (its legs carry it).
     pub(crate) fn id(&self) -> u64 {
         self.id
@@ -679,25 +674,45 @@ impl<'m, M: Medium> Endpoints<'m, M> {
             return;
         }
         let n = self.len();
-        let (w_in, w_out) = dirs(DVec3::ZERO);
-        // Source form: the direction leaving x (a sensor's is minus the arrival).
-        let w = match self.side {
-            Side::Source => w_out,
-            Side::Sensor => -w_in,
-        };
-        let (lobes, one) = (lobes(phase), Complex64::new(1.0, 0.0));
+        let w = self.source_form(&dirs);
         let sink = &mut |owner: usize, v: Complex64| {
             let (re, im) = &mut outs[owner / n];
             re[owner % n] += v.re;
             im[owner % n] += v.im;
         };
-        let mut batch = near::Batch::new(self.three);
         let none = &crate::Damping::NONE;
-        for (c, l) in legs.iter().enumerate() {
+        self.push_beams(legs.iter().map(|l| (*l, none)), lobes(phase), w, sink);
+    }
+
+    /// The path direction at a point in source form, from the (incoming, outgoing) directions
+    /// of `dirs` (as [`Endpoints::scatter`] reads them): the outgoing one for a source, minus
+    /// the incoming one for a sensor.
+    #[inline]
+    pub(crate) fn source_form(&self, dirs: &impl Fn(DVec3) -> (DVec3, DVec3)) -> DVec3 {
+        let (w_in, w_out) = dirs(DVec3::ZERO);
+        match self.side {
+            Side::Source => w_out,
+            Side::Sensor => -w_in,
+        }
+    }
+
+    /// Evaluates into `sink` the connections of every Gaussian beam `i` for every item `c` of
+    /// `items` (its legs and damping) towards the source-form direction `w`, for owner
+    /// `c len() + i`, in one batch.
+    pub(crate) fn push_beams<'l>(
+        &self,
+        items: impl Iterator<Item = (&'l Legs, &'l crate::Damping)>,
+        lobes: &[(f64, f64)],
+        w: DVec3,
+        sink: &mut impl FnMut(usize, Complex64),
+    ) {
+        let (n, one) = (self.len(), Complex64::new(1.0, 0.0));
+        let mut batch = near::Batch::new(self.three);
+        for (c, (l, d)) in items.enumerate() {
             for i in 0..n {
                 if let Kind::Gaussian(_) = &self.ends[i] {
                     let a = &l.aperture[i];
-                    near::push_upsilon(&mut batch, c * n + i, one, a, lobes, none, w, sink);
+                    near::push_upsilon(&mut batch, c * n + i, one, a, lobes, d, w, sink);
                 }
             }
         }

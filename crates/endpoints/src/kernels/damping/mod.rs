@@ -160,26 +160,13 @@ impl<M: Medium> Endpoints<'_, M> {
         if !self.gaussian {
             return;
         }
-        let (w_in, w_out) = dirs(DVec3::ZERO);
-        let w = match self.side {
-            Side::Source => w_out,
-            Side::Sensor => -w_in,
-        };
-        let (lobes, one) = (lobes(phase), Complex64::new(1.0, 0.0));
+        let w = self.source_form(&dirs);
         let sink = &mut |owner: usize, v: Complex64| {
             out_re[owner] += v.re;
             out_im[owner] += v.im;
         };
-        let mut batch = near::Batch::new(self.three);
-        for (l, d) in dampings.iter().enumerate() {
-            for i in 0..n {
-                if let Kind::Gaussian(_) = &self.ends[i] {
-                    let a = &legs.aperture[i];
-                    near::push_upsilon(&mut batch, l * n + i, one, a, lobes, d, w, sink);
-                }
-            }
-        }
-        batch.flush(sink);
+        let items = dampings.iter().map(|d| (legs, d));
+        self.push_beams(items, lobes(phase), w, sink);
     }
 
     /// [`Endpoints::single`] with the plane waves `psi` of both endpoints (source form: a
