@@ -2,15 +2,16 @@
 //! averages in closed form up to one normal vector per end vertex ([`super`]'s module docs;
 //! `speckle_endpoints::Damping`). At lag `t`, with `C = k^2 D |t|` for the end vertex's
 //! diffusion `D` and the standard normal vector `u` drawn for it, copy 1 connects the vertex
-//! with every plane wave `psi` of its endpoint weighted by `e^(-C (1 - psi . w)) e^(s u . psi)`,
-//! copy 2 with `e^(-C (1 - psi . w)) e^(-s u . psi)`, `s = sqrt(C / 2)`: the product of copy 1
+//! with every plane wave `psi` of its endpoint weighted by `e^(-C (1 - psi . w)) e^(s u . (psi -
+//! w))`, copy 2 with `e^(-C (1 - psi . w)) e^(-s u . (psi - w))`, `s = sqrt(C / 2)` (`w` the
+//! path direction in source form, whose part cancels in the pair): the product of copy 1
 //! and the conjugate of copy 2, averaged over `u`, is the pair's Gaussian average over the
 //! displacement, `e^(-C |(p + p') / 2|^2)`, which the sampled displacements estimate
 //! (`speckle_endpoints::Damping`'s module docs; `tests/motion_beams.rs`). Each connection stays
 //! one closed-form vMF integral per lobe, at the vertex itself (no displaced copies: one set of
 //! legs, apertures and attenuation fits). `u` and `-u` are equally likely, so each entry takes
 //! both signs, `(A1(u) conj(A2(-u)) + A1(-u) conj(A2(u))) / 2` (antithetic: the same
-//! connections, half the coupling's noise), which is Hermitian in the entries per path.
+//! connections), which is Hermitian in the entries per path.
 
 use super::*;
 use crate::connect::Cvec;

@@ -93,9 +93,10 @@ use speckle_phase::PhaseFunction;
 use speckle_stats::rng::derive_seed;
 use speckle_stats::{BatchSum, CMatrix, Layout, PartGroups, Poll, Progress, batch_moments_grouped};
 
-/// The index given to [`derive_seed`] for the key of the end vertices' sampled Brownian
-/// displacements (scenes with Gaussian beams): path `n` draws them from stream `n` of
-/// `derive_seed(seed, BROWNIAN_KEY)`, so its path is the static one.
+/// The index given to [`derive_seed`] for the key of the end vertices' normal vectors (scenes
+/// with Gaussian beams: the sampled Brownian displacements with drift, the tilts of the closed
+/// form without): path `n` draws them from stream `n` of `derive_seed(seed, BROWNIAN_KEY)`, so
+/// its path is the static one.
 pub const BROWNIAN_KEY: u64 = 0x0042_726f_776e; // "Brown"
 
 /// Which entries `C[j, k](t)` of the pair list a correlation render estimates.

@@ -27,8 +27,9 @@ pub(super) struct Plan {
     /// Whether the end vertices' Brownian displacements are sampled (scenes with Gaussian
     /// beams and drift).
     pub(super) sampled: bool,
-    /// Whether copy 2's end vertices are averaged over their Brownian displacements in closed
-    /// form by damped connections (scenes with Gaussian beams and no drift; `damped.rs`).
+    /// Whether the end vertices' Brownian averages are closed forms up to one normal vector
+    /// per vertex, both copies damped and tilted at the vertex (scenes with Gaussian beams and
+    /// no drift; `damped.rs`).
     pub(super) damped: bool,
     /// Whether the copies of every lag connect from displaced points (drift, or sampled
     /// displacements): then each lag has its own ends.
