@@ -97,7 +97,14 @@ impl MotionState {
     /// The interior factor `exp(-k^2 |t| Y + i k t Q)` at lag `t` for wavenumber `k`.
     #[inline]
     pub fn interior(&self, k: f64, t: f64) -> Complex64 {
-        Complex64::from_polar((-k * k * t.abs() * self.y).exp(), k * t * self.q)
+        Complex64::from_polar(self.interior_decay(k, t), k * t * self.q)
+    }
+
+    /// Its magnitude `exp(-k^2 |t| Y)`: the whole factor where nothing drifts (`Q = 0`; then
+    /// equal to [`MotionState::interior`]'s real part bitwise, without its sine and cosine).
+    #[inline]
+    pub fn interior_decay(&self, k: f64, t: f64) -> f64 {
+        (-k * k * t.abs() * self.y).exp()
     }
 }
 

@@ -189,8 +189,9 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                     antithetic(a, copy(en.s2, en.v2))
                 };
             }
-            let y = s.state.interior(k, self.plan.lags[l]) * w;
-            self.sums[2 * l + 1].push_values(&s.buf, y);
+            // (No drift: the interior factor is its decay.)
+            let y = s.state.interior_decay(k, self.plan.lags[l]) * w;
+            self.sums[2 * l + 1].push_values(&s.buf, Complex64::new(y, 0.0));
         }
     }
 }

@@ -250,8 +250,18 @@ impl<M: Medium> Endpoints<'_, M> {
                     return;
                 }
                 // Isotropic lobes: `sum_m e^(l_m)` times the product of the tilted fields.
-                let mut fields = vec![Complex64::new(0.0, 0.0); 2 * tilts.len()];
-                let sink = &mut |i: usize, x: Complex64| fields[i] = x;
+                // The batch hands each owner its value in the order pushed: the source's
+                // field (`2 m`) just before the sensor's (`2 m + 1`).
+                let mut source_field = Complex64::new(0.0, 0.0);
+                let sink = &mut |i: usize, x: Complex64| {
+                    if i.is_multiple_of(2) {
+                        source_field = x;
+                    } else {
+                        for &(_, l) in lobes {
+                            out[i / 2] += l.exp() * source_field * x;
+                        }
+                    }
+                };
                 for (m, &t) in tilts.iter().enumerate() {
                     let t = Tilt(t);
                     let (a_s, a_v) = (t.tilted(&in1.aperture[s]), t.tilted(&out1.aperture[v]));
@@ -259,11 +269,6 @@ impl<M: Medium> Endpoints<'_, M> {
                     batch.push(2 * m + 1, one, a_v.log_scale, a_v.mu, sink);
                 }
                 batch.flush(sink);
-                for (m, o) in out.iter_mut().enumerate() {
-                    for &(_, l) in lobes {
-                        *o += l.exp() * fields[2 * m] * fields[2 * m + 1];
-                    }
-                }
             }
             _ => {
                 let sink = &mut |i: usize, x: Complex64| out[i] += x;
