@@ -70,6 +70,7 @@
 //! (`linear.rs`, equal to the copy-by-copy connections to rounding).
 
 mod damped;
+mod diagonal;
 mod factor;
 mod legs;
 mod linear;
@@ -368,6 +369,7 @@ pub fn render_correlation<M: Medium, P: PhaseFunction>(
             damped: plan
                 .damped
                 .then(|| DampedScratch::new(lags.len(), conn_len.0, conn_len.1)),
+            shares: Default::default(),
         }
     };
     let path = |s: &mut Scratch<M, P>, n: u64, sums: &mut [BatchSum], poll: &mut Poll| {

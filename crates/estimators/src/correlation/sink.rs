@@ -79,10 +79,11 @@ pub(super) struct Scratch<'s, M, P> {
     /// A vertex's terms for [`PowerSums::add`]: entry, weighted amplitude product, exponent of
     /// the power base.
     pub(super) terms: Vec<(usize, Complex64, f64)>,
-    /// Diagonal entries without drift ([`CorrelationSink::diagonal_powers`]): the first
-    /// vertex's Brownian exponents of the path, forward per source, reversed per sensor and
-    /// crossed per entry (set at its second vertex), and the last vertex's, per sensor,
-    /// source and entry.
+    /// Diagonal entries ([`CorrelationSink::first_parts`], [`CorrelationSink::last_parts`]):
+    /// the first vertex's Brownian exponents of the path, forward per source, reversed per
+    /// sensor and crossed per entry (set at its second vertex), and, for the exponential
+    /// drift, the last vertex's per sensor and source (without drift they go straight into
+    /// `shares`).
     pub(super) first_fwd: Vec<f64>,
     pub(super) first_rev: Vec<f64>,
     pub(super) first_cross: Vec<f64>,
@@ -112,6 +113,9 @@ pub(super) struct Scratch<'s, M, P> {
     pub(super) count: usize,
     /// With Gaussian beams and no drift: the damped connections (`damped.rs`).
     pub(super) damped: Option<super::damped::DampedScratch>,
+    /// Diagonal entries without drift: the terms' per-source and per-sensor factors
+    /// (`diagonal.rs`).
+    pub(super) shares: super::diagonal::Shares,
 }
 
 pub(super) struct CorrelationSink<'a, 's, 'p, M, P> {
@@ -219,152 +223,6 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         } else {
             table.add(out);
         }
-    }
-
-    /// The Brownian exponents' parts of diagonal entries at the vertex reached along `w_in`
-    /// ([`Self::diagonal_powers`]): the first vertex's per source (`first_fwd`), sensor
-    /// (`first_rev`) and entry (`first_cross`), when `second` (they are fixed along the path),
-    /// and the last vertex's per sensor (`last_fwd`), source (`last_rev`) and the crossed
-    /// terms' two halves (`cross_sen`, `cross_src`).
-    pub(super) fn diagonal_parts(&mut self, w_in: DVec3, second: bool) {
-        use speckle_motion::{first_transfer, last_transfer, sensor_gradient, source_gradient};
-        let Scratch {
-            conn,
-            state,
-            first_fwd,
-            first_rev,
-            first_cross,
-            last_fwd,
-            last_rev,
-            cross_sen,
-            cross_src,
-            ..
-        } = &mut *self.s;
-        let (d1, db, w1) = (state.first.diffusion, state.here.diffusion, state.w1);
-        let reversed = self.coherence == Coherence::ForwardAndReversed;
-        let ends = conn.ends();
-        let (n_src, n_sen) = (ends.in1.len(), ends.out1.len());
-        // Leg gradients: forward at x1 and x_b, reversed at x1 and x_b.
-        let g_f1 = |i: usize| source_gradient(ends.in1.dir(i));
-        let g_fb = |v: usize| sensor_gradient(ends.out_b.dir(v));
-        let g_r1 = |v: usize| sensor_gradient(ends.out1.dir(v));
-        let g_rb = |i: usize| source_gradient(ends.in_b.dir(i));
-        let first = move |g1, g2| d1 * first_transfer(w1, g1, g2).length_squared();
-        let last = move |g1, g2| db * last_transfer(w_in, g1, g2).length_squared();
-        if second {
-            first_fwd.clear();
-            first_fwd.extend((0..n_src).map(|i| first(g_f1(i), g_f1(i))));
-            first_rev.clear();
-            first_cross.clear();
-            if reversed {
-                first_rev.extend((0..n_sen).map(|v| first(g_r1(v), g_r1(v))));
-                let local = self.plan.local.iter();
-                first_cross.extend(local.map(|en| first(g_f1(en.s1), g_r1(en.v1))));
-            }
-        }
-        last_fwd.clear();
-        last_fwd.extend((0..n_sen).map(|v| last(g_fb(v), g_fb(v))));
-        last_rev.clear();
-        cross_sen.clear();
-        cross_src.clear();
-        if reversed {
-            last_rev.extend((0..n_src).map(|i| last(g_rb(i), g_rb(i))));
-            cross_sen.extend((0..n_sen).map(|v| -w_in - 0.5 * g_fb(v)));
-            cross_src.extend((0..n_src).map(|i| 0.5 * g_rb(i)));
-        }
-    }
-
-    /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
-    /// drift or sampled displacements, whose two copies are one pair with the same ends. The
-    /// Brownian exponent of a term combination is a first vertex's part, which depends on the
-    /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
-    /// plus the last vertex's: so the parts are formed once per path, source or sensor
-    /// (`first_*`, `last_*`) rather than once per entry and combination. Every entry has the
-    /// same combinations (forward, crossed, reversed; all real: `a conj(a)`,
-    /// `a conj(b) + b conj(a)`), so they go to [`SlotSums`], one vector lane per entry. The
-    /// terms are those of the general path, their sums equal to rounding (`tests/motion.rs`
-    /// compares the two).
-    pub(super) fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
-        let Some(p) = &self.plan.powers else {
-            return;
-        };
-        let c = self.plan.k * self.plan.k * p.delta;
-        self.diagonal_parts(w_in, second);
-        let db = self.s.state.here.diffusion;
-        let reversed = self.coherence == Coherence::ForwardAndReversed;
-        let Scratch {
-            conn,
-            slots,
-            first_fwd,
-            first_rev,
-            first_cross,
-            last_fwd,
-            last_rev,
-            cross_sen,
-            cross_src,
-            ..
-        } = &mut *self.s;
-        let ends = conn.ends();
-        let slots = slots.as_mut().expect("slot sums of diagonal entries");
-        let mut terms = slots.terms();
-        let (first_fwd, first_rev, first_cross) =
-            (&first_fwd[..], &first_rev[..], &first_cross[..]);
-        let (last_fwd, last_rev) = (&last_fwd[..], &last_rev[..]);
-        let (cross_sen, cross_src) = (&cross_sen[..], &cross_src[..]);
-        for (e, en) in self.plan.local.iter().enumerate() {
-            let (i, v) = (en.s1, en.v1);
-            let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
-            // `a conj(a)` and `a conj(b) + b conj(a)` are real to the last bit:
-            // `|a|^2` and `2 Re(a conj(b))`, formed with the same products.
-            let xf = c * (y + first_fwd[i] + last_fwd[v]);
-            terms.set(e, 0, w * pf.norm_sqr(), xf);
-            if !reversed {
-                continue;
-            }
-            let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
-            let cross = first_cross[e] + db * (cross_sen[v] - cross_src[i]).length_squared();
-            let crossed = pf.re * pr.re + pf.im * pr.im;
-            terms.set(e, 1, w * (crossed + crossed), c * (y + cross));
-            let xr = c * (y + first_rev[v] + last_rev[i]);
-            terms.set(e, 2, w * pr.norm_sqr(), xr);
-        }
-        slots.add();
-    }
-
-    /// [`Self::single_terms`] and [`Self::push_powers`] of single scattering at once for
-    /// diagonal entries without drift or sampled displacements (the same terms: one per entry,
-    /// both copies the same pair with the same ends).
-    pub(super) fn diagonal_single(&mut self, w: f64) {
-        use speckle_motion::{sensor_gradient, single_transfer, source_gradient};
-        let Scratch {
-            conn,
-            state,
-            table,
-            terms: out,
-            ..
-        } = &mut *self.s;
-        let (Some(p), Some(tables)) = (&self.plan.powers, table) else {
-            return;
-        };
-        let c = self.plan.k * self.plan.k * p.delta;
-        let d1 = state.first.diffusion;
-        let ends = conn.ends();
-        out.clear();
-        let pairs = self.plan.local.iter().zip(&self.plan.entries);
-        for (e, (en, &(j, _))) in pairs.enumerate() {
-            let (i, v) = (en.s1, en.v1);
-            let (ds, dv) = (ends.in1.dir(i), ends.out1.dir(v));
-            let f =
-                ends.in1.amp(i) * ends.out1.amp(v) * conn.first_amplitude(self.type1, j, ds, dv);
-            let g = source_gradient(ds) + sensor_gradient(dv);
-            let a = d1 * single_transfer(g, g).length_squared();
-            // What `merge_terms` gives for this one combination.
-            let pr = f * f.conj();
-            if pr != Complex64::ZERO {
-                out.push((e, w * pr, c * a));
-            }
-        }
-        tables[0].add_held(out);
     }
 
     /// The ends of both copies of lag `l`: their own with drift or sampled displacements, the

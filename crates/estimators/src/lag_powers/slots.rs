@@ -49,8 +49,11 @@ pub(crate) struct SlotSums {
     gaps: Vec<usize>,
     /// The distinct gaps, in the order the lags first take them.
     kinds: Vec<Gap>,
+    /// Where each lag's multipliers start in `mult` (in the order of the sums): its gap's,
+    /// or those of the last block of `mult`, ones, between lags of equal `|t|`.
+    rows: Vec<usize>,
     /// Scratch: the multipliers of the distinct gaps of the terms being added, `[c S + s]`
-    /// for gap `c` and slot `s` of `S`; those of one term alone (a term whose powers
+    /// for gap `c` and slot `s` of `S`, then `S` ones; those of one term alone (a term whose powers
     /// underflow); and powers on their way.
     mult: Vec<f64>,
     one: Vec<f64>,
@@ -155,7 +158,9 @@ pub(super) fn gaps_of(p: &Powers) -> Option<(Vec<usize>, Vec<Gap>)> {
 /// `r^n exp(-x d)`, the second factor by its Taylor polynomial of degree `degrees[c]`
 /// (accurate for the terms whose `x d` it was chosen for, [`SlotSums::degree`]) or, where that
 /// is `None`, as an exponential. Each loop goes over every term at once, so that it
-/// vectorises.
+/// vectorises. The polynomials take `x` clamped once to `1 / max |d|` (no term they serve
+/// reaches it, `|x d| <= 0.013`): a lane of no term, or of one whose powers underflow, keeps a
+/// finite multiplier however large its `x` (never `0 * inf`).
 #[inline(always)]
 fn gap_multipliers(
     kinds: &[Gap],
@@ -166,8 +171,22 @@ fn gap_multipliers(
     scratch: &mut Vec<f64>,
 ) {
     let n = r.len();
-    scratch.resize(2 * n, 0.0);
-    let (pw, sq) = scratch.split_at_mut(n);
+    scratch.resize(3 * n, 0.0);
+    let (pw, rest) = scratch.split_at_mut(n);
+    let (sq, xc) = rest.split_at_mut(n);
+    let widest = kinds
+        .iter()
+        .zip(degrees)
+        .fold(0.0, |a: f64, (k, d)| match (k, d) {
+            (Gap::Real(_, d), Some(_)) => a.max(d.abs()),
+            _ => a,
+        });
+    if widest > 0.0 {
+        let most = 1.0 / widest;
+        for (c, x) in xc.iter_mut().zip(x) {
+            *c = x.min(most);
+        }
+    }
     // The previous whole gap (its multiplier's place) and its steps.
     let (mut prev, mut cur) = (None, 1);
     for (c, &kind) in kinds.iter().enumerate() {
@@ -189,16 +208,17 @@ fn gap_multipliers(
                     powers_into(pw, r, k, sq);
                     &*pw
                 };
+                let xc = &*xc;
                 match degrees[c] {
-                    Some(1) => taylor::<1>(o, x, pw, d),
-                    Some(2) => taylor::<2>(o, x, pw, d),
-                    Some(3) => taylor::<3>(o, x, pw, d),
-                    Some(4) => taylor::<4>(o, x, pw, d),
-                    Some(5) => taylor::<5>(o, x, pw, d),
-                    Some(6) => taylor::<6>(o, x, pw, d),
-                    Some(7) => taylor::<7>(o, x, pw, d),
-                    Some(8) => taylor::<8>(o, x, pw, d),
-                    Some(_) => taylor::<9>(o, x, pw, d),
+                    Some(1) => taylor::<1>(o, xc, pw, d),
+                    Some(2) => taylor::<2>(o, xc, pw, d),
+                    Some(3) => taylor::<3>(o, xc, pw, d),
+                    Some(4) => taylor::<4>(o, xc, pw, d),
+                    Some(5) => taylor::<5>(o, xc, pw, d),
+                    Some(6) => taylor::<6>(o, xc, pw, d),
+                    Some(7) => taylor::<7>(o, xc, pw, d),
+                    Some(8) => taylor::<8>(o, xc, pw, d),
+                    Some(_) => taylor::<9>(o, xc, pw, d),
                     None => {
                         // (Clamped as the polynomials are: where `|x d| > 700`, `p` is zero.)
                         for ((o, x), p) in o.iter_mut().zip(x).zip(pw) {
@@ -212,14 +232,12 @@ fn gap_multipliers(
 }
 
 /// `o = p exp(-x d)` element by element, the exponential by its Taylor polynomial of degree
-/// `D` (Horner's rule from the top coefficient `1 / D!`), one loop over the elements. Its
-/// argument is clamped to `[-1, 1]`, which no term it serves reaches (`|x d| <= 0.013`): a lane
-/// of no term, or of one whose powers underflow, keeps a finite multiplier however large its
-/// `x` (never `0 * inf`).
+/// `D` (Horner's rule from the top coefficient `1 / D!`), one loop over the elements (`x`
+/// clamped by [`gap_multipliers`]: `|x d| <= 1`).
 #[inline(always)]
 fn taylor<const D: usize>(o: &mut [f64], x: &[f64], p: &[f64], d: f64) {
     for ((o, x), p) in o.iter_mut().zip(x).zip(p) {
-        let u = (-d * x).clamp(-1.0, 1.0);
+        let u = -d * x;
         let mut t = INV_FACT[D];
         for a in INV_FACT[..D].iter().rev() {
             t = t * u + a;
@@ -314,9 +332,17 @@ impl SlotSums {
         let width = entries.div_ceil(Self::LANES) * Self::LANES;
         let most = steps.last().copied().unwrap_or(1).max(1);
         let least = PowerSums::TINY.powf(1.0 / most as f64) * 1.001;
+        let slots = width * per_entry;
+        let mut mult = vec![0.0; (kinds.len() + 1) * slots];
+        mult[kinds.len() * slots..].fill(1.0);
+        let rows: Vec<usize> = gaps
+            .iter()
+            .map(|&g| if g == NO_GAP { kinds.len() } else { g } * slots)
+            .collect();
         Self {
+            rows,
             gaps,
-            mult: vec![0.0; kinds.len() * width * per_entry],
+            mult,
             one: vec![0.0; kinds.len()],
             scratch: Vec::new(),
             degrees: kinds.iter().map(|k| Self::degree(k, least)).collect(),
@@ -521,27 +547,48 @@ impl<const P: usize> pulp::WithSimd for AddSlots<'_, P> {
                 t.sums[k * w + e] += q;
             }
         }
-        // Two blocks at a time (`2 P` independent chains of products), then the last alone;
-        // blocks without terms are skipped.
-        let mut held = None;
+        // Blocks with terms, four at a time where a vector holds eight lanes (`4 P`
+        // independent chains of products, in registers), else two; then the rest.
+        let mut live = [0; 64];
+        let mut count = 0;
         for b in 0..w / L {
-            if t.z[b * P * L..(b + 1) * P * L].iter().all(|&z| z == 0.0) {
-                continue;
-            }
-            match held.take() {
-                None => held = Some(b),
-                Some(a) => add_blocks::<S, P, 2>(simd, t, [a, b]),
+            if t.z[b * P * L..(b + 1) * P * L].iter().any(|&z| z != 0.0) {
+                if count == live.len() {
+                    add_groups::<S, P>(simd, t, &live);
+                    count = 0;
+                }
+                live[count] = b;
+                count += 1;
             }
         }
-        if let Some(a) = held {
-            add_blocks::<S, P, 1>(simd, t, [a]);
+        add_groups::<S, P>(simd, t, &live[..count]);
+    }
+}
+
+/// [`add_blocks`] of the blocks `live`, as many at once as registers allow.
+#[inline(always)]
+fn add_groups<S: pulp::Simd, const P: usize>(simd: S, t: &mut SlotSums, live: &[usize]) {
+    let mut rest = live;
+    if S::F64_LANES >= 8 {
+        while let [a, b, c, d, more @ ..] = rest {
+            add_blocks::<S, P, 4>(simd, t, [*a, *b, *c, *d]);
+            rest = more;
         }
+    }
+    while let [a, b, more @ ..] = rest {
+        add_blocks::<S, P, 2>(simd, t, [*a, *b]);
+        rest = more;
+    }
+    if let [a] = rest {
+        add_blocks::<S, P, 1>(simd, t, [*a]);
     }
 }
 
 /// [`AddSlots`] for `B` blocks of eight entries at once (their powers' chains of products
 /// interleaved): `q = z`, and at each lag `k`, `q *= g` (`g` the multiplier of the lag's gap,
-/// [`gap_multipliers`]; none between lags of equal `|t|`) and `sums[k] += q_1 + ... + q_P`.
+/// [`gap_multipliers`]; ones between lags of equal `|t|`) and `sums[k] += q_1 + ... + q_P`.
+/// The multipliers stay in registers while the gap does not change (every lag of a regular
+/// grid, eight of a multi-tau grid's).
 #[inline(always)]
 fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     simd: S,
@@ -549,39 +596,37 @@ fn add_blocks<S: pulp::Simd, const P: usize, const B: usize>(
     blocks: [usize; B],
 ) {
     const L: usize = SlotSums::LANES;
-    let (n, w) = (t.lags.len(), t.width);
+    let w = t.width;
+    // (Apart from `t`, so that the loop keeps its pointers in registers.)
+    let (sums, rows, mult) = (&mut t.sums[..], &t.rows[..], &t.mult[..]);
     let mut q = [[[0.0; L]; P]; B];
     for (qj, &b) in q.iter_mut().zip(&blocks) {
-        for (qc, z) in qj.iter_mut().zip(t.z[b * P * L..].chunks_exact(L)) {
+        let z = &t.z[b * P * L..][..P * L];
+        for (qc, z) in qj.iter_mut().zip(z.chunks_exact(L)) {
             qc.copy_from_slice(z);
         }
     }
-    let slots = t.r.len();
-    // The multipliers of the current gap `cur`, kept while the gap does not change.
     let mut g = [[[1.0; L]; P]; B];
-    let mut cur = NO_GAP;
-    for k in 0..n {
-        let gap = t.gaps[k];
-        if gap != NO_GAP && gap != cur {
+    let mut cur = usize::MAX;
+    for (row, &at) in sums.chunks_exact_mut(w).zip(rows) {
+        if at != cur {
             for (gj, &b) in g.iter_mut().zip(&blocks) {
-                let at = &t.mult[gap * slots + b * P * L..][..P * L];
-                for (gc, mc) in gj.iter_mut().zip(at.chunks_exact(L)) {
+                let m = &mult[at + b * P * L..][..P * L];
+                for (gc, mc) in gj.iter_mut().zip(m.chunks_exact(L)) {
                     gc.copy_from_slice(mc);
                 }
             }
-            cur = gap;
+            cur = at;
         }
         for (j, &b) in blocks.iter().enumerate() {
-            if gap != NO_GAP {
-                for (qc, gc) in q[j].iter_mut().zip(&g[j]) {
-                    let (qv, _) = S::as_mut_simd_f64s(qc);
-                    let (gv, _) = S::as_simd_f64s(gc);
-                    for (q, g) in qv.iter_mut().zip(gv) {
-                        *q = simd.mul_f64s(*q, *g);
-                    }
+            for (qc, gc) in q[j].iter_mut().zip(&g[j]) {
+                let (qv, _) = S::as_mut_simd_f64s(qc);
+                let (gv, _) = S::as_simd_f64s(gc);
+                for (q, g) in qv.iter_mut().zip(gv) {
+                    *q = simd.mul_f64s(*q, *g);
                 }
             }
-            add_row(simd, &mut t.sums[k * w + b * L..][..L], &q[j]);
+            add_row(simd, &mut row[b * L..][..L], &q[j]);
         }
     }
 }

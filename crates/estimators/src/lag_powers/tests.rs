@@ -210,9 +210,13 @@ fn slot_sums(
 fn slot_sums_are_the_exponentials_to_rounding() {
     let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
     let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
+    // (37 and 42 entries: blocks of eight lanes four at a time on wide vectors, then the
+    // rest.)
     for (lags, entries) in [
         (&regular, 11),
         (&gathered, 9),
+        (&regular, 37),
+        (&gathered, 42),
         (&regular, 2),
         (&gathered, 1),
     ] {
@@ -250,16 +254,19 @@ fn slot_sums_are_the_exponentials_to_rounding() {
 fn slot_sums_are_the_same_on_every_instruction_set() {
     let regular: Vec<f64> = (1..=64).map(|m| m as f64 * 0.05).collect();
     let gathered = vec![0.0, 0.4, -0.8, 1.2, 2.0, 0.4, 6.0];
-    for lags in [
-        &regular,
-        &gathered,
-        &multi_tau(false),
-        &multi_tau(true),
-        &seven_digits(),
-    ] {
-        let terms = slot_terms(19, 4);
-        let fast = slot_sums(lags, 19, None, &terms);
-        let plain = slot_sums(lags, 19, Some(pulp::Arch::Scalar), &terms);
+    let grids = [
+        regular,
+        gathered,
+        multi_tau(false),
+        multi_tau(true),
+        seven_digits(),
+    ];
+    // (19 entries: three blocks, two at a time and one; 45: six, four at a time on wide
+    // vectors and two.)
+    for (lags, entries) in grids.iter().flat_map(|g| [(g, 19), (g, 45)]) {
+        let terms = slot_terms(entries, 4);
+        let fast = slot_sums(lags, entries, None, &terms);
+        let plain = slot_sums(lags, entries, Some(pulp::Arch::Scalar), &terms);
         let bits = |v: &[Vec<Complex64>]| {
             v.iter()
                 .flatten()
@@ -391,7 +398,9 @@ fn rounded_lags_take_their_own_gaps() {
             .iter()
             .all(|k| matches!(k, Gap::Real(1, d) if d.abs() < 4e-5))
     );
-    check_slot_sums(&lags, 11, 0.37 * 8.0 * f64::EPSILON * 64.0);
+    for entries in [11, 37] {
+        check_slot_sums(&lags, entries, 0.37 * 8.0 * f64::EPSILON * 64.0);
+    }
     assert!(gaps_of(&Powers::of(&multi_tau(true)).unwrap()).is_none());
     assert!(gaps_of(&Powers::of(&multi_tau(false)).unwrap()).is_some());
 }
@@ -433,7 +442,9 @@ fn multi_tau_lags_take_runs_of_their_own_steps() {
         let eta = runs.iter().map(|r| r.2.eta.abs()).fold(0.0, f64::max);
         assert!(digits == (eta > 0.0) && eta < 1e-5, "{eta}");
         check_power_sums(&lags, &[1e-4, 3e-3, 0.05, 0.9], eta);
-        check_slot_sums(&lags, 11, 0.54 * eta * eta);
+        for entries in [11, 37] {
+            check_slot_sums(&lags, entries, 0.54 * eta * eta);
+        }
     }
 }
 
