@@ -1,8 +1,8 @@
 //! The diagonal entries' own path without drift or sampled displacements
 //! ([`CorrelationSink::diagonal_powers`], [`CorrelationSink::diagonal_single`]): both copies
 //! of an entry are one pair with the same ends, so a vertex's terms are formed from what the
-//! entries of one source or one sensor share, and go to the slot sums of
-//! [`crate::lag_powers`].
+//! entries of one source or one sensor share ([`Shares`], which the exponential drift's
+//! diagonal entries take too, `linear.rs`), and go to the slot sums of [`crate::lag_powers`].
 
 use super::*;
 
@@ -14,11 +14,13 @@ pub(super) struct SourceShare {
     fwd: f64,
     rev: f64,
     cross: Complex64,
-    /// The forward exponent's part `y + first_fwd` and the reversed one's `last_rev`.
-    x_fwd: f64,
-    x_rev: f64,
-    /// The crossed terms' last transfer's half `cross_src`.
-    half: DVec3,
+    /// The Brownian exponents' parts: the forward term's at the first vertex (`D(x_1)
+    /// |q_1|^2`, fixed along the path) and the reversed term's at the last.
+    pub(super) first: f64,
+    pub(super) last: f64,
+    /// The crossed terms' last transfer `-w_in - (g_fb + g_rb) / 2` is the sensor's `half`
+    /// less this one, `g_rb / 2`.
+    pub(super) half: DVec3,
 }
 
 /// What the terms of the entries of one sensor share at a vertex ([`Shares`]).
@@ -29,11 +31,12 @@ pub(super) struct SensorShare {
     fwd: f64,
     rev: f64,
     cross: Complex64,
-    /// The forward exponent's part `last_fwd` and the reversed one's `y + first_rev`.
-    x_fwd: f64,
-    x_rev: f64,
-    /// The crossed terms' last transfer's half `cross_sen`.
-    half: DVec3,
+    /// The Brownian exponents' parts: the reversed term's at the first vertex and the forward
+    /// term's at the last.
+    pub(super) first: f64,
+    pub(super) last: f64,
+    /// `-w_in - g_fb / 2`: the crossed terms' last transfer with the source's `half`.
+    pub(super) half: DVec3,
 }
 
 /// Per source and per sensor, the factors of the diagonal entries' terms at a vertex: an
@@ -43,22 +46,21 @@ pub(super) struct SensorShare {
 /// a source's and a sensor's parts (the crossed one's a distance between them).
 #[derive(Debug, Default)]
 pub(super) struct Shares {
-    src: Vec<SourceShare>,
-    sen: Vec<SensorShare>,
+    pub(super) src: Vec<SourceShare>,
+    pub(super) sen: Vec<SensorShare>,
 }
 
 impl Shares {
     /// The shares of the vertex reached along `w_in` whose legs are `ends`: the path weight
-    /// `w`, the interior exponent `y`, the first vertex's exponents' parts `first` (forward
-    /// per source, reversed per sensor: [`CorrelationSink::first_parts`]) and the last
-    /// vertex's, formed here as [`CorrelationSink::last_parts`] forms them (diffusion
-    /// coefficient `db` there); the reversed and crossed ones only when `reversed`.
+    /// `w`, the first vertex's exponents' parts `first` (forward per source, reversed per
+    /// sensor: [`CorrelationSink::first_parts`]) and the last vertex's (diffusion coefficient
+    /// `db` there); the reversed and crossed ones only when `reversed`.
     fn fill(
         &mut self,
         ends: &Ends,
         (first_fwd, first_rev): (&[f64], &[f64]),
         (w_in, db): (DVec3, f64),
-        (w, y): (f64, f64),
+        w: f64,
         reversed: bool,
     ) {
         use speckle_motion::{last_transfer, sensor_gradient, source_gradient};
@@ -69,7 +71,7 @@ impl Shares {
             let f = ends.fwd_src.get(i);
             let mut s = SourceShare {
                 fwd: w * f.norm_sqr(),
-                x_fwd: y + first_fwd[i],
+                first: first_fwd[i],
                 ..Default::default()
             };
             if reversed {
@@ -77,7 +79,7 @@ impl Shares {
                 let g = source_gradient(ends.in_b.dir(i));
                 s.rev = w * r.norm_sqr();
                 s.cross = (2.0 * w) * (f * r.conj());
-                s.x_rev = last(g);
+                s.last = last(g);
                 s.half = 0.5 * g;
             }
             s
@@ -88,14 +90,14 @@ impl Shares {
             let g = sensor_gradient(ends.out_b.dir(v));
             let mut s = SensorShare {
                 fwd: f.norm_sqr(),
-                x_fwd: last(g),
+                last: last(g),
                 ..Default::default()
             };
             if reversed {
                 let r = ends.rev_sens.get(v);
                 s.rev = r.norm_sqr();
                 s.cross = f * r.conj();
-                s.x_rev = y + first_rev[v];
+                s.first = first_rev[v];
                 s.half = -w_in - 0.5 * g;
             }
             s
@@ -104,14 +106,23 @@ impl Shares {
 }
 
 impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
-    /// The Brownian exponents' parts of diagonal entries at the vertex reached along `w_in`:
-    /// the first vertex's ([`Self::first_parts`]) when `second`, and the last vertex's
-    /// ([`Self::last_parts`]).
-    pub(super) fn diagonal_parts(&mut self, w_in: DVec3, second: bool) {
+    /// The diagonal entries' [`Shares`] at the vertex reached along `w_in` with path weight
+    /// `w`, the first vertex's parts formed first when `second` ([`Self::first_parts`]).
+    pub(super) fn shares_at(&mut self, w_in: DVec3, w: f64, second: bool) {
         if second {
             self.first_parts();
         }
-        self.last_parts(w_in);
+        let db = self.s.state.here.diffusion;
+        let reversed = self.coherence == Coherence::ForwardAndReversed;
+        let Scratch {
+            conn,
+            shares,
+            first_fwd,
+            first_rev,
+            ..
+        } = &mut *self.s;
+        let first = (&first_fwd[..], &first_rev[..]);
+        shares.fill(conn.ends(), first, (w_in, db), w, reversed);
     }
 
     /// The first vertex's Brownian exponents' parts of diagonal entries, per source
@@ -146,46 +157,12 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         }
     }
 
-    /// The last vertex's Brownian exponents' parts of diagonal entries at the vertex reached
-    /// along `w_in`: per sensor (`last_fwd`), source (`last_rev`) and the crossed terms' two
-    /// halves (`cross_sen`, `cross_src`).
-    pub(super) fn last_parts(&mut self, w_in: DVec3) {
-        use speckle_motion::{last_transfer, sensor_gradient, source_gradient};
-        let Scratch {
-            conn,
-            state,
-            last_fwd,
-            last_rev,
-            cross_sen,
-            cross_src,
-            ..
-        } = &mut *self.s;
-        let db = state.here.diffusion;
-        let reversed = self.coherence == Coherence::ForwardAndReversed;
-        let ends = conn.ends();
-        let (n_src, n_sen) = (ends.in1.len(), ends.out1.len());
-        // Leg gradients at x_b: forward per sensor, reversed per source.
-        let g_fb = |v: usize| sensor_gradient(ends.out_b.dir(v));
-        let g_rb = |i: usize| source_gradient(ends.in_b.dir(i));
-        let last = move |g1, g2| db * last_transfer(w_in, g1, g2).length_squared();
-        last_fwd.clear();
-        last_fwd.extend((0..n_sen).map(|v| last(g_fb(v), g_fb(v))));
-        last_rev.clear();
-        cross_sen.clear();
-        cross_src.clear();
-        if reversed {
-            last_rev.extend((0..n_src).map(|i| last(g_rb(i), g_rb(i))));
-            cross_sen.extend((0..n_sen).map(|v| -w_in - 0.5 * g_fb(v)));
-            cross_src.extend((0..n_src).map(|i| 0.5 * g_rb(i)));
-        }
-    }
-
     /// [`Self::vertex_terms`] and [`Self::push_powers`] at once for diagonal entries without
     /// drift or sampled displacements, whose two copies are one pair with the same ends. The
     /// Brownian exponent of a term combination is a first vertex's part, which depends on the
     /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
     /// plus the last vertex's: so the parts are formed once per path, source or sensor
-    /// ([`Self::first_parts`], [`Shares::fill`]) rather than once per entry and combination.
+    /// ([`Self::shares_at`]) rather than once per entry and combination.
     /// So are the amplitude
     /// products' factors ([`Shares`]): an entry's `|a|^2` is its source's times its sensor's,
     /// and its crossed `2 Re(a conj(b))` the real part of a product of the two, so that an
@@ -198,22 +175,15 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             return;
         };
         let c = self.plan.k * self.plan.k * p.delta;
-        if second {
-            self.first_parts();
-        }
+        self.shares_at(w_in, w, second);
         let db = self.s.state.here.diffusion;
         let reversed = self.coherence == Coherence::ForwardAndReversed;
         let Scratch {
-            conn,
             slots,
             shares,
-            first_fwd,
-            first_rev,
             first_cross,
             ..
         } = &mut *self.s;
-        let first = (&first_fwd[..], &first_rev[..]);
-        shares.fill(conn.ends(), first, (w_in, db), (w, y), reversed);
         let slots = slots.as_mut().expect("slot sums of diagonal entries");
         let mut terms = slots.terms();
         let (src, sen) = (&shares.src[..], &shares.sen[..]);
@@ -221,16 +191,16 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         if !reversed {
             for (e, en) in local.iter().enumerate() {
                 let (a, b) = (&src[en.s1], &sen[en.v1]);
-                terms.set(e, 0, a.fwd * b.fwd, c * (a.x_fwd + b.x_fwd));
+                terms.set(e, 0, a.fwd * b.fwd, c * (y + a.first + b.last));
             }
         } else {
             for ((e, en), &first) in local.iter().enumerate().zip(&first_cross[..]) {
                 let (a, b) = (&src[en.s1], &sen[en.v1]);
-                terms.set(e, 0, a.fwd * b.fwd, c * (a.x_fwd + b.x_fwd));
+                terms.set(e, 0, a.fwd * b.fwd, c * (y + a.first + b.last));
                 let cross = first + db * (b.half - a.half).length_squared();
                 let z = a.cross.re * b.cross.re - a.cross.im * b.cross.im;
                 terms.set(e, 1, z, c * (y + cross));
-                terms.set(e, 2, a.rev * b.rev, c * (b.x_rev + a.x_rev));
+                terms.set(e, 2, a.rev * b.rev, c * (y + b.first + a.last));
             }
         }
         slots.add();

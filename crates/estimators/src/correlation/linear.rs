@@ -187,7 +187,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         if self.plan.mode == Mode::Diagonal {
             // The first vertex's parts are fixed along the path: formed at its second vertex
             // (a path reaches later vertices only through it: the live lags only shrink).
-            self.diagonal_parts(v.w_in, v.index == 2);
+            self.shares_at(v.w_in, weight, v.index == 2);
         } else {
             self.vertex_terms(None, v.w_in);
         }
@@ -220,8 +220,9 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
             return;
         }
         // Diagonal entries: the copies are one pair with the same ends; the Brownian exponents
-        // from their per-source and per-sensor parts ([`Self::diagonal_parts`]).
+        // from their per-source and per-sensor parts ([`Self::shares_at`]).
         let ends = s.conn.ends();
+        let (src, sen) = (&s.shares.src[..], &s.shares.sen[..]);
         if !s.legs.iter().any(LegSet::any_bent) {
             // Every leg exponential: each copy's forward and reversed factors once per entry.
             let [l_src1, l_sen1, l_srcb, l_senb] = &s.legs;
@@ -231,7 +232,7 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                 let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
                 let (a, b) = (l_src1.step(i), l_senb.step(v));
                 let (ef, gf) = (a.0 * b.0 * shared.interior, a.1 * b.1);
-                let xf = exp_neg(c * (y + s.first_fwd[i] + s.last_fwd[v]));
+                let xf = exp_neg(c * (y + src[i].first + sen[v].last));
                 sums.set(e, 0, weight * pf * pf.conj(), ef * gf * xf);
                 if !reversed {
                     continue;
@@ -239,12 +240,11 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
                 let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
                 let (a, b) = (l_sen1.step(v), l_srcb.step(i));
                 let (er, gr) = (a.0 * b.0 * shared.interior, a.1 * b.1);
-                let cross =
-                    s.first_cross[e] + db * (s.cross_sen[v] - s.cross_src[i]).length_squared();
+                let cross = s.first_cross[e] + db * (sen[v].half - src[i].half).length_squared();
                 let xc = exp_neg(c * (y + cross));
                 sums.set(e, 1, weight * pf * pr.conj(), ef * gr * xc);
                 sums.set(e, 2, weight * pr * pf.conj(), er * gf * xc);
-                let xr = exp_neg(c * (y + s.first_rev[v] + s.last_rev[i]));
+                let xr = exp_neg(c * (y + sen[v].first + src[i].last));
                 sums.set(e, 3, weight * pr * pr.conj(), er * gr * xr);
             }
             sums.add(s.count);
@@ -253,17 +253,17 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
         for (e, en) in self.plan.local.iter().enumerate() {
             let (i, v) = (en.s1, en.v1);
             let pf = ends.fwd_src.get(i) * ends.fwd_sens.get(v);
-            let xf = s.first_fwd[i] + s.last_fwd[v];
+            let xf = src[i].first + sen[v].last;
             let (fwd, rev) = (term_legs(0, i, v), term_legs(1, i, v));
             shared.add(sums, e, 0, weight * pf * pf.conj(), xf, fwd, fwd);
             if !reversed {
                 continue;
             }
             let pr = ends.rev_src.get(i) * ends.rev_sens.get(v);
-            let xc = s.first_cross[e] + db * (s.cross_sen[v] - s.cross_src[i]).length_squared();
+            let xc = s.first_cross[e] + db * (sen[v].half - src[i].half).length_squared();
             shared.add(sums, e, 1, weight * pf * pr.conj(), xc, fwd, rev);
             shared.add(sums, e, 2, weight * pr * pf.conj(), xc, rev, fwd);
-            let xr = s.first_rev[v] + s.last_rev[i];
+            let xr = sen[v].first + src[i].last;
             shared.add(sums, e, 3, weight * pr * pr.conj(), xr, rev, rev);
         }
         sums.add(s.count);

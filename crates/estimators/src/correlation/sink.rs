@@ -79,20 +79,12 @@ pub(super) struct Scratch<'s, M, P> {
     /// A vertex's terms for [`PowerSums::add`]: entry, weighted amplitude product, exponent of
     /// the power base.
     pub(super) terms: Vec<(usize, Complex64, f64)>,
-    /// Diagonal entries ([`CorrelationSink::first_parts`], [`CorrelationSink::last_parts`]):
-    /// the first vertex's Brownian exponents of the path, forward per source, reversed per
-    /// sensor and crossed per entry (set at its second vertex), and, for the exponential
-    /// drift, the last vertex's per sensor and source (without drift they go straight into
-    /// `shares`).
+    /// Diagonal entries ([`CorrelationSink::first_parts`]): the first vertex's Brownian
+    /// exponents of the path, forward per source, reversed per sensor and crossed per entry
+    /// (set at its second vertex).
     pub(super) first_fwd: Vec<f64>,
     pub(super) first_rev: Vec<f64>,
     pub(super) first_cross: Vec<f64>,
-    pub(super) last_fwd: Vec<f64>,
-    pub(super) last_rev: Vec<f64>,
-    /// The crossed terms' last transfer `-w_in - (g_fb + g_rb) / 2` in two parts,
-    /// `-w_in - g_fb / 2` per sensor less `g_rb / 2` per source.
-    pub(super) cross_sen: Vec<DVec3>,
-    pub(super) cross_src: Vec<DVec3>,
     /// The sampled displacements' stream of the current path, and the standard normal vectors
     /// of its first and current vertices.
     pub(super) brown: PathRng,
@@ -113,7 +105,7 @@ pub(super) struct Scratch<'s, M, P> {
     pub(super) count: usize,
     /// With Gaussian beams and no drift: the damped connections (`damped.rs`).
     pub(super) damped: Option<super::damped::DampedScratch>,
-    /// Diagonal entries without drift: the terms' per-source and per-sensor factors
+    /// Diagonal entries: the terms' per-source and per-sensor factors at the current vertex
     /// (`diagonal.rs`).
     pub(super) shares: super::diagonal::Shares,
 }
