@@ -6,36 +6,23 @@
 
 use super::*;
 
-/// What the terms of the entries of one source share at a vertex ([`Shares`]).
+/// What the terms of the entries of one source, or of one sensor, share at a vertex
+/// ([`Shares`]).
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct SourceShare {
-    /// `w |f|^2` and `w |r|^2` of its forward and reversed amplitudes `f`, `r`
-    /// (`fwd_src`, `rev_src`), and `2 w f conj(r)`.
+pub(super) struct Share {
+    /// `|f|^2` and `|r|^2` of its forward and reversed amplitudes `f`, `r` (`fwd_src` and
+    /// `rev_src`, or `fwd_sens` and `rev_sens`), and `f conj(r)`; a source's times the path
+    /// weight `w`, its `f conj(r)` times `2 w`.
     fwd: f64,
     rev: f64,
     cross: Complex64,
-    /// The Brownian exponents' parts: the forward term's at the first vertex (`D(x_1)
-    /// |q_1|^2`, fixed along the path) and the reversed term's at the last.
+    /// The Brownian exponents' parts at the first vertex (`D(x_1) |q_1|^2`, fixed along the
+    /// path) and at the last: a source's of the forward term and of the reversed one, a
+    /// sensor's of the reversed term and of the forward one.
     pub(super) first: f64,
     pub(super) last: f64,
-    /// The crossed terms' last transfer `-w_in - (g_fb + g_rb) / 2` is the sensor's `half`
-    /// less this one, `g_rb / 2`.
-    pub(super) half: DVec3,
-}
-
-/// What the terms of the entries of one sensor share at a vertex ([`Shares`]).
-#[derive(Debug, Clone, Copy, Default)]
-pub(super) struct SensorShare {
-    /// `|f|^2` and `|r|^2` of its forward and reversed amplitudes `f`, `r` (`fwd_sens`,
-    /// `rev_sens`), and `f conj(r)`.
-    fwd: f64,
-    rev: f64,
-    cross: Complex64,
-    /// The Brownian exponents' parts: the reversed term's at the first vertex and the forward
-    /// term's at the last.
-    pub(super) first: f64,
-    pub(super) last: f64,
-    /// `-w_in - g_fb / 2`: the crossed terms' last transfer with the source's `half`.
+    /// The crossed terms' last transfer `-w_in - (g_fb + g_rb) / 2` is the sensor's `half`,
+    /// `-w_in - g_fb / 2`, less the source's, `g_rb / 2`.
     pub(super) half: DVec3,
 }
 
@@ -46,8 +33,8 @@ pub(super) struct SensorShare {
 /// a source's and a sensor's parts (the crossed one's a distance between them).
 #[derive(Debug, Default)]
 pub(super) struct Shares {
-    pub(super) src: Vec<SourceShare>,
-    pub(super) sen: Vec<SensorShare>,
+    pub(super) src: Vec<Share>,
+    pub(super) sen: Vec<Share>,
 }
 
 impl Shares {
@@ -69,7 +56,7 @@ impl Shares {
         self.src.clear();
         self.src.extend((0..n_src).map(|i| {
             let f = ends.fwd_src.get(i);
-            let mut s = SourceShare {
+            let mut s = Share {
                 fwd: w * f.norm_sqr(),
                 first: first_fwd[i],
                 ..Default::default()
@@ -88,7 +75,7 @@ impl Shares {
         self.sen.extend((0..n_sen).map(|v| {
             let f = ends.fwd_sens.get(v);
             let g = sensor_gradient(ends.out_b.dir(v));
-            let mut s = SensorShare {
+            let mut s = Share {
                 fwd: f.norm_sqr(),
                 last: last(g),
                 ..Default::default()
