@@ -149,14 +149,13 @@ impl<M: Medium, P: PhaseFunction> CorrelationSink<'_, '_, '_, M, P> {
     /// Brownian exponent of a term combination is a first vertex's part, which depends on the
     /// source (forward), the sensor (reversed) or both (crossed) and is fixed along the path,
     /// plus the last vertex's: so the parts are formed once per path, source or sensor
-    /// ([`Self::shares_at`]) rather than once per entry and combination.
-    /// So are the amplitude
+    /// ([`Self::shares_at`]) rather than once per entry and combination. So are the amplitude
     /// products' factors ([`Shares`]): an entry's `|a|^2` is its source's times its sensor's,
     /// and its crossed `2 Re(a conj(b))` the real part of a product of the two, so that an
     /// entry costs a few products. Every entry has the same combinations (forward, crossed,
     /// reversed; all real), so they go to [`SlotSums`], one vector lane per entry. The terms
-    /// are those of the general path, their sums equal to rounding (`tests/motion.rs` and
-    /// `tests/value_stability.rs` compare the two).
+    /// are those of the general path, their sums equal to rounding (`tests/motion.rs`
+    /// compares the two).
     pub(super) fn diagonal_powers(&mut self, w_in: DVec3, w: f64, y: f64, second: bool) {
         let Some(p) = &self.plan.powers else {
             return;

@@ -53,8 +53,8 @@ pub(crate) struct SlotSums {
     /// or those of the last block of `mult`, ones, between lags of equal `|t|`.
     rows: Vec<usize>,
     /// Scratch: the multipliers of the distinct gaps of the terms being added, `[c S + s]`
-    /// for gap `c` and slot `s` of `S`, then `S` ones; those of one term alone (a term whose powers
-    /// underflow); and powers on their way.
+    /// for gap `c` and slot `s` of `S`, then `S` ones; those of one term alone (a term whose
+    /// powers underflow); and powers on their way.
     mult: Vec<f64>,
     one: Vec<f64>,
     scratch: Vec<f64>,
