@@ -15,6 +15,18 @@ use speckle_medium::{Aabb, HomogeneousBox};
 /// than `1e-5` of it: the tolerance is `1e-4` of the largest value (measured: `1e-7`). Each
 /// copy damped alone (no tilt) misses by 3-7% of the largest value, one copy damped by `2 C`
 /// (the average over one displaced copy) by 12-24%.
+/// A nearly clear 12 x 12 x 6 box (12 x 12 in flatland; mean free path 1e4) and its `up`
+/// axis, the beams' direction.
+fn clear_box(flat: bool) -> (HomogeneousBox, DVec3) {
+    let b = if flat {
+        Aabb::flat(glam::DVec2::splat(-6.0), glam::DVec2::splat(6.0)).unwrap()
+    } else {
+        Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 6.0)).unwrap()
+    };
+    let m = HomogeneousBox::from_mean_free_path(b, 1e4, 1.0).unwrap();
+    (m, if flat { DVec3::Y } else { DVec3::Z })
+}
+
 #[test]
 fn damped_pairs_are_the_gaussian_average_of_displaced_copies() {
     use speckle_phase::Phase;
@@ -27,13 +39,7 @@ fn damped_pairs_are_the_gaussian_average_of_displaced_copies() {
     let sigma = 1.7 / k;
     let big_c = 0.5 * k * k * sigma * sigma;
     for flat in [false, true] {
-        let b = if flat {
-            Aabb::flat(glam::DVec2::splat(-6.0), glam::DVec2::splat(6.0)).unwrap()
-        } else {
-            Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 6.0)).unwrap()
-        };
-        let m = HomogeneousBox::from_mean_free_path(b, 1e4, 1.0).unwrap();
-        let up = if flat { DVec3::Y } else { DVec3::Z };
+        let (m, up) = clear_box(flat);
         let beam = |f: DVec3, g: f64| crate::GaussianBeam::new("b", f, up, g).unwrap();
         let sources = vec![
             Source::GaussianBeam(beam(DVec3::new(0.3, -0.2, 0.0), 9.0)),
@@ -188,13 +194,7 @@ fn tilted_single_scattering_is_single_scattering_at_the_moved_point() {
     ));
     let k = 6.0;
     for flat in [false, true] {
-        let b = if flat {
-            Aabb::flat(glam::DVec2::splat(-6.0), glam::DVec2::splat(6.0)).unwrap()
-        } else {
-            Aabb::centered(DVec3::ZERO, DVec3::new(12.0, 12.0, 6.0)).unwrap()
-        };
-        let m = HomogeneousBox::from_mean_free_path(b, 1e4, 1.0).unwrap();
-        let up = if flat { DVec3::Y } else { DVec3::Z };
+        let (m, up) = clear_box(flat);
         let iso = if flat {
             Phase::FlatIsotropic
         } else {
